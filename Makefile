@@ -1,0 +1,34 @@
+# The README's two commands: `make paper` (install + every figure from raw data) and `make test`.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+BUDGET ?= paper
+CORES ?= 2
+
+.PHONY: paper test install lint format clean
+
+$(VENV)/.installed: pyproject.toml requirements.lock
+	python3 -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	# torch first and pinned: the CPU build, never a multi-GB CUDA one
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -r requirements.lock
+	$(PY) -m pip install -q --no-deps -e .
+	touch $@
+
+install: $(VENV)/.installed
+
+paper: install
+	$(VENV)/bin/snakemake --cores $(CORES) results/figures --config budget=$(BUDGET)
+
+test: install
+	$(VENV)/bin/pytest -q
+
+lint: install
+	$(VENV)/bin/snakemake --lint
+	$(VENV)/bin/snakefmt --check Snakefile rules
+
+format: install
+	$(VENV)/bin/snakefmt Snakefile rules
+
+clean:
+	rm -rf results logs benchmarks .snakemake

@@ -1,0 +1,40 @@
+# embodied-snap: from raw rig recordings to every figure of the paper, with lineage.
+# Targets: all (default), figures, deployment (later stages add tables).
+from snakemake.utils import min_version, validate
+
+min_version("9.0")
+
+
+configfile: "config.yaml"
+
+
+validate(config, "schemas/config.schema.yaml")
+
+
+include: "rules/common.smk"
+
+
+wildcard_constraints:
+    shard=r"[a-z_]+-\d+",
+    role="train|validation|sealed",
+
+
+if config["raw_data"]["source"] == "twin":
+
+    include: "rules/acquire.smk"
+
+
+include: "rules/data.smk"
+include: "rules/lineage.smk"
+include: "rules/report.smk"
+
+
+rule all:
+    default_target: True
+    input:
+        "results/figures",
+        "results/raw/manifest.json",
+        expand("results/data/50hz/{shard}.parquet", shard=SHARDS),
+        "results/lineage/separation.json",
+        "results/lineage/prov.json",
+        TWIN_REPORTS,

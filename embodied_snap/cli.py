@@ -1,0 +1,116 @@
+"""`esnap`: the project's command line. Each subcommand is a thin call into the package."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import yaml
+
+
+def _config(path: str, budget: str | None) -> dict:
+    with open(path) as f:
+        cfg = yaml.safe_load(f)
+    if budget:
+        cfg["budget"] = budget
+    return cfg
+
+
+def cmd_twin(a) -> int:
+    from .plan import load_plan
+    from .rawformat import write_index, write_json
+    from .twin.acquire import acquire_groups
+    from .twin.truth import truth
+
+    cfg = _config(a.config, a.budget)
+    plan = load_plan(cfg)
+    if a.evidence_set:
+        plan = plan[plan.evidence_set.isin(a.evidence_set)]
+    raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
+    rows = acquire_groups(plan, raw, seed=cfg["seed"], dt=cfg["twin"]["dt"])
+    write_index(rows, raw / "index.csv")
+    write_json(truth(cfg["seed"], cfg["sessions"]), raw / "twin_truth.json")
+    print(f"{len(rows)} groups written to {raw}")
+    return 0
+
+
+def cmd_validate(a) -> int:
+    from .validate import RecordingError, validate_group, validate_index
+
+    try:
+        index = validate_index(a.raw_dir)
+        for row in index.to_dict("records"):
+            validate_group(a.raw_dir, row["group_id"], row)
+    except RecordingError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    print(f"{len(index)} groups valid")
+    return 0
+
+
+def cmd_audit(a) -> int:
+    from .audit import audit, format_audit
+
+    report = audit(a.result, root=a.root)
+    print(json.dumps(report, indent=1, default=str) if a.json else format_audit(report))
+    return 1 if report.get("stale") else 0
+
+
+def cmd_check_separation(a) -> int:
+    from .separation import check
+
+    res = check(a.root, static=not a.no_static, records=not a.no_records)
+    for v in res["violations"]:
+        print(f"leak: {v}")
+    print("separation holds" if res["ok"] else f"{len(res['violations'])} separation violation(s)")
+    return 0 if res["ok"] else 1
+
+
+def cmd_prov(a) -> int:
+    from .provexport import export
+
+    print(export(a.root, a.out))
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="esnap", description=__doc__)
+    sub = p.add_subparsers(dest="cmd", required=True)
+
+    t = sub.add_parser("twin", help="record groups on the simulated rig (outside Snakemake)")
+    t.add_argument("action", choices=["acquire"])
+    t.add_argument("--config", default="config.yaml")
+    t.add_argument("--budget", choices=["paper", "quick", "smoke"])
+    t.add_argument("--raw-dir")
+    t.add_argument("--evidence-set", action="append", help="only these evidence sets (repeatable)")
+    t.set_defaults(fn=cmd_twin)
+
+    v = sub.add_parser("validate", help="check a recording tree against the rig format")
+    v.add_argument("raw_dir", nargs="?", default="raw_data")
+    v.set_defaults(fn=cmd_validate)
+
+    au = sub.add_parser("audit", help="which recordings fed RESULT, which never did, and whether it is stale")
+    au.add_argument("result")
+    au.add_argument("--root", default=".")
+    au.add_argument("--json", action="store_true")
+    au.set_defaults(fn=cmd_audit)
+
+    cs = sub.add_parser("check-separation", help="prove the evidence-set separation (DESIGN section 3)")
+    cs.add_argument("--root", default=".")
+    cs.add_argument("--no-static", action="store_true", help="skip the Snakemake DAG check")
+    cs.add_argument("--no-records", action="store_true", help="skip the provenance-record check")
+    cs.set_defaults(fn=cmd_check_separation)
+
+    pr = sub.add_parser("prov", help="export the run's provenance as W3C PROV-JSON")
+    pr.add_argument("--root", default=".")
+    pr.add_argument("--out", default="results/lineage/prov.json")
+    pr.set_defaults(fn=cmd_prov)
+
+    a = p.parse_args(argv)
+    return a.fn(a)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

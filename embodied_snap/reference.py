@@ -1,0 +1,43 @@
+"""The paper's numbers, read from reference/paper_values.yaml: the reference column, never a result."""
+
+from __future__ import annotations
+
+import math
+from functools import cache
+from pathlib import Path
+
+import yaml
+
+REFERENCE = Path(__file__).resolve().parent.parent / "reference" / "paper_values.yaml"
+
+
+@cache
+def paper_values(path: str | Path = REFERENCE) -> dict:
+    with open(path) as f:
+        return yaml.safe_load(f)
+
+
+def _within(value, lo, hi) -> bool:
+    vals = value if isinstance(value, (list, tuple)) else [value]
+    return all(v is not None and not math.isnan(v) and lo <= v <= hi for v in vals)
+
+
+def twin_comparison(phenomena: dict, path: str | Path = REFERENCE) -> list[dict]:
+    """One row per twin phenomenon: paper value, ours, the accepted range, and whether we are in it."""
+    rows = []
+    for key, ref in paper_values(path)["twin_phenomena"].items():
+        ours = phenomena.get(key)
+        lo, hi = (float(x) for x in ref["twin_range"])
+        rows.append(
+            dict(
+                key=key,
+                section=ref["section"],
+                quantity=ref["quantity"],
+                paper=ref["paper"],
+                ours=ours,
+                twin_range=[lo, hi],
+                unit=ref["unit"],
+                ok=ours is not None and _within(ours, lo, hi),
+            )
+        )
+    return rows

@@ -1,0 +1,88 @@
+# Acquisition on the simulated rig (DESIGN section 6): raw_data/ is written here, group by group.
+# Recordings are source data: the protocol writes a group's files once, read-only, and never
+# overwrites them; a changed recording reruns only what reads it.
+
+
+checkpoint twin_acquire:
+    output:
+        "results/twin/acquired/{shard}.json",
+    log:
+        "logs/twin_acquire/{shard}.log",
+    benchmark:
+        "benchmarks/twin_acquire/{shard}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        groups=lambda wc: PLAN[PLAN.shard == wc.shard].to_dict("records"),
+        raw=RAW,
+        seed=config["seed"],
+        dt=config["twin"]["dt"],
+    script:
+        "../workflow_scripts/twin_acquire.py"
+
+
+rule twin_index:
+    input:
+        ancient(expand("results/twin/acquired/{shard}.json", shard=SHARDS)),
+    output:
+        protected(f"{RAW}/index.csv"),
+    log:
+        "logs/twin_index.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/twin_index.py"
+
+
+rule twin_truth:
+    output:
+        protected(f"{RAW}/twin_truth.json"),
+    log:
+        "logs/twin_truth.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        seed=config["seed"],
+        sessions=config["sessions"],
+    script:
+        "../workflow_scripts/twin_truth.py"
+
+
+rule twin_phenomena:
+    """What the simulated rig shows, read from its recordings as the pipeline reads them."""
+    input:
+        shards=expand("results/raw/shards/{shard}.json", shard=SHARDS),
+        code=code("twin/phenomena"),
+    output:
+        "results/twin/phenomena.json",
+    log:
+        "logs/twin_phenomena.log",
+    benchmark:
+        "benchmarks/twin_phenomena.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=PLAN[["group_id", "evidence_set", "category", "session"]].to_dict(
+            "records"
+        ),
+    script:
+        "../workflow_scripts/twin_phenomena.py"
+
+
+rule twin_validation:
+    """The one reader of the twin's ground truth: phenomena beside the paper's hardware values."""
+    input:
+        truth=f"{RAW}/twin_truth.json",
+        phenomena="results/twin/phenomena.json",
+    output:
+        "results/twin/validation.json",
+    log:
+        "logs/twin_validation.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/twin_validation.py"
+
+
+TWIN_REPORTS = ["results/twin/validation.json"]

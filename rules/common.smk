@@ -1,0 +1,47 @@
+# Shared by every stage: the group plan, shards, and where a group's files live.
+import sys
+
+# The package beside the Snakefile, installed or not.
+sys.path.insert(0, workflow.basedir)
+
+from embodied_snap.plan import PlanError, load_plan
+from embodied_snap.rawformat import group_paths
+
+RAW = config["raw_data"]["dir"]
+BUDGET = config["budgets"][config["budget"]]
+TWIN = config["raw_data"]["source"] == "twin"
+
+try:
+    PLAN = load_plan(config, RAW)
+except PlanError as e:
+    raise WorkflowError(str(e)) from None
+
+SHARDS = {s: list(g.group_id) for s, g in PLAN.groupby("shard", sort=True)}
+ROLE_SHARDS = {
+    r: sorted(PLAN[PLAN.role == r].shard.unique())
+    for r in ("train", "validation", "sealed")
+}
+
+
+def code(*modules):
+    """Package modules as inputs, so that editing one reruns exactly the jobs that import it
+    (Snakemake itself tracks only a job's own script)."""
+    return [f"embodied_snap/{m}.py" for m in modules]
+
+
+def group_files(gids):
+    return [str(p) for g in gids for p in group_paths(RAW, g).values()]
+
+
+def shard_raw(wildcards):
+    """A shard's recordings; with the simulated rig they exist once its acquisition ran."""
+    if TWIN:
+        checkpoints.twin_acquire.get(shard=wildcards.shard)
+    return group_files(SHARDS[wildcards.shard])
+
+
+TWIN_REPORTS = []  # the simulated rig adds its reports
+
+
+def raw_index():
+    return f"{RAW}/index.csv"

@@ -1,0 +1,118 @@
+# Raw recordings -> validated manifest -> 50 Hz state/command series -> group split and windows
+# (DESIGN section 4, steps 2-3; paper section IV-A).
+
+
+rule validate_shard:
+    """Every recording of a shard against the rig format (one-line error naming file, group, rule)."""
+    input:
+        raw=shard_raw,
+        index=ancient(raw_index()),
+        code=code("validate", "rawformat"),
+    output:
+        "results/raw/shards/{shard}.json",
+    log:
+        "logs/validate_shard/{shard}.log",
+    benchmark:
+        "benchmarks/validate_shard/{shard}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        groups=lambda wc: SHARDS[wc.shard],
+    script:
+        "../workflow_scripts/validate_shard.py"
+
+
+rule validate_index:
+    """index.csv against the group folders: unique ids, known sets, no row without files or files without row."""
+    input:
+        index=raw_index(),
+        shards=ancient(expand("results/raw/shards/{shard}.json", shard=SHARDS)),
+        code=code("validate", "rawformat"),
+    output:
+        "results/raw/index_check.json",
+    log:
+        "logs/validate_index.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/validate_index.py"
+
+
+rule raw_manifest:
+    """One manifest of the raw tree: sha256 per file, group by group."""
+    input:
+        index="results/raw/index_check.json",
+        shards=expand("results/raw/shards/{shard}.json", shard=SHARDS),
+    output:
+        "results/raw/manifest.json",
+    log:
+        "logs/raw_manifest.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/raw_manifest.py"
+
+
+rule resample_shard:
+    """Each group on its own to the 50 Hz grid: state x_t (21) and command u_t (9)."""
+    input:
+        raw=shard_raw,
+        valid="results/raw/shards/{shard}.json",
+        code=code("resample", "validate", "rawformat"),
+    output:
+        "results/data/50hz/{shard}.parquet",
+    log:
+        "logs/resample_shard/{shard}.log",
+    benchmark:
+        "benchmarks/resample_shard/{shard}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=lambda wc: SHARDS[wc.shard],
+        hz=config["resample"]["hz"],
+        max_gap_s=config["resample"]["max_gap_s"],
+    script:
+        "../workflow_scripts/resample_shard.py"
+
+
+rule split:
+    """440/78/20 by acquisition group, seeded; depends on the group list alone."""
+    input:
+        code=code("plan"),
+    output:
+        "results/splits/split.csv",
+    log:
+        "logs/split.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        split=PLAN[PLAN.evidence_set == "dynamics"][
+            ["group_id", "category", "session", "role"]
+        ].to_dict("records"),
+        seed=config["seed"],
+    script:
+        "../workflow_scripts/split.py"
+
+
+rule windows:
+    """Windows of one split (20-step history, 5-step look-ahead, 25-step horizon), from that split's
+    shards only: the DAG itself shows what each model saw."""
+    input:
+        shards=lambda wc: expand(
+            "results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS[wc.role]
+        ),
+        split="results/splits/split.csv",
+        code=code("windows"),
+    output:
+        "results/splits/windows_{role}.npz",
+    log:
+        "logs/windows/{role}.log",
+    benchmark:
+        "benchmarks/windows/{role}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        w=config["windows"],
+    script:
+        "../workflow_scripts/windows.py"

@@ -1,0 +1,162 @@
+"""The whole DAG on the smoke budget, in a copy of the repository: fresh run, exact reruns after a
+changed recording or an edited module, audit, separation, and a broken recording stopping cleanly.
+
+The tests in this module share one smoke run and are ordered: the destructive ones come last.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+COPY = ["Snakefile", "config.yaml", "rules", "workflow_scripts", "schemas", "envs", "profiles",
+        "reference", "report", "embodied_snap"]
+SMOKE = ["--config", "budget=smoke"]
+BIN = Path(sys.executable).parent
+
+pytestmark = pytest.mark.slow
+
+
+def run(cmd, cwd, check=True):
+    env = {**os.environ, "PYTHONPATH": str(cwd), "PATH": f"{BIN}:{os.environ['PATH']}"}
+    r = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    if check and r.returncode != 0:
+        raise AssertionError(f"{' '.join(cmd)} failed:\n{r.stdout[-4000:]}\n{r.stderr[-4000:]}")
+    return r
+
+
+def snakemake(cwd, *args, check=True):
+    return run(["snakemake", "--cores", "2", *args, *SMOKE], cwd, check)
+
+
+def dry_jobs(cwd, *targets) -> list[tuple[str, str]]:
+    """(rule, wildcards) of every job a dry run would execute, sorted."""
+    out = snakemake(cwd, "-n", *targets).stdout
+    jobs, rule = [], None
+    for line in out.splitlines():
+        m = re.match(r"^(?:rule|checkpoint) (\w+):", line.strip())
+        if m:
+            rule = m.group(1)
+            jobs.append([rule, ""])
+        m = re.match(r"^wildcards: (.*)$", line.strip())
+        if m and jobs:
+            jobs[-1][1] = m.group(1)
+    return sorted((r, w) for r, w in jobs)
+
+
+def digest_tree(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def wf(tmp_path_factory):
+    d = tmp_path_factory.mktemp("wf")
+    for name in COPY:
+        src = REPO / name
+        (shutil.copytree if src.is_dir() else shutil.copy2)(src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {}))
+    snakemake(d, "all")
+    return d
+
+
+def test_fresh_run_builds_figures_and_lineage(wf):
+    figs = sorted(p.name for p in (wf / "results/figures").iterdir())
+    assert "fig0_data_overview.pdf" in figs and "fig0_data_overview.png" in figs
+    index = pd.read_csv(wf / "raw_data/index.csv")
+    assert len(index) == 48 and index.group_id.is_unique
+    sep = json.loads((wf / "results/lineage/separation.json").read_text())
+    assert sep["ok"] and not sep["violations"]
+    prov = json.loads((wf / "results/lineage/prov.json").read_text())
+    assert "entity" in prov and "activity" in prov
+    split = pd.read_csv(wf / "results/splits/split.csv")
+    assert split.role.value_counts().to_dict() == {"train": 9, "validation": 3, "sealed": 2}
+
+
+def test_nothing_to_do_after_a_run(wf):
+    assert dry_jobs(wf, "all") == []
+
+
+def test_audit_of_train_windows_names_train_groups_only(wf):
+    r = run([str(BIN / "esnap"), "audit", "results/splits/windows_train.npz", "--json"], wf)
+    rep = json.loads(r.stdout)
+    split = pd.read_csv(wf / "results/splits/split.csv")
+    train = set(split[split.role == "train"].group_id)
+    fed = {g for gs in rep["fed"].values() for g in gs}
+    assert fed == train
+    assert not rep["stale"]
+    assert {"attachment", "delay_sweep", "servo_calibration"} <= set(rep["not_fed"])
+
+
+def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
+    f = wf / "raw_data/groups/att_0003/mocap.parquet"
+    st = f.stat()
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))  # a new recording, as Snakemake sees it
+    jobs = dry_jobs(wf, "results/figures")
+    assert jobs == sorted([
+        ("validate_shard", "shard=attachment-00"),
+        ("raw_manifest", ""),
+        ("fig_data_overview", ""),
+        ("check_separation", ""),
+        ("figures", ""),
+    ])
+    r = run([str(BIN / "esnap"), "audit", "results/figures/fig0_data_overview.pdf"], wf, check=False)
+    assert r.returncode == 1 and "stale" in r.stdout.lower()
+    snakemake(wf, "all")
+    assert dry_jobs(wf, "all") == []
+
+
+def test_editing_a_module_reruns_exactly_the_rules_that_import_it(wf):
+    m = wf / "embodied_snap/windows.py"
+    m.write_text(m.read_text() + "\n# edited\n")
+    assert dry_jobs(wf, "results/figures") == sorted([
+        ("windows", "role=train"),
+        ("windows", "role=validation"),
+        ("windows", "role=sealed"),
+        ("check_separation", ""),
+        ("figures", ""),
+    ])
+    snakemake(wf, "all")
+
+
+def test_injected_leak_is_caught(wf):
+    split = wf / "results/splits/split.csv"
+    keep = split.read_bytes()
+    df = pd.read_csv(split)
+    sealed = df[df.role == "sealed"].group_id.iloc[0]
+    df.loc[df.group_id == sealed, "role"] = "train"
+    df.to_csv(split, index=False)
+    try:
+        r = run([str(BIN / "esnap"), "check-separation", "--no-static"], wf, check=False)
+        assert r.returncode == 1 and sealed in r.stdout
+    finally:
+        split.write_bytes(keep)
+
+
+def test_broken_recording_stops_with_one_line_and_touches_nothing_else(wf):
+    f = wf / "raw_data/groups/att_0005/mocap.parquet"
+    good = f.read_bytes()
+    before = digest_tree(wf / "results")
+    f.chmod(0o644)
+    f.write_bytes(good[: len(good) // 2])  # a truncated parquet
+    try:
+        r = snakemake(wf, "results/figures", check=False)
+        assert r.returncode != 0
+        lines = [l for l in (r.stdout + r.stderr).splitlines() if l.startswith("error:") and "att_0005" in l]
+        assert lines, r.stderr[-3000:]
+        assert "mocap.parquet" in lines[0] and "rule:" in lines[0]
+        after = digest_tree(wf / "results")
+        failed = "raw/shards/attachment-00.json"  # the rejected shard's own output is withdrawn
+        changed = {k for k in before if k != failed and not k.startswith("provenance/") and before[k] != after.get(k)}
+        assert not changed
+    finally:
+        f.write_bytes(good)

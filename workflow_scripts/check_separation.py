@@ -1,0 +1,16 @@
+"""Prove DESIGN section 3 on the DAG and on the records; fail the workflow on any leak."""
+
+import sys
+
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.separation import check
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    result = check(".", config_overrides=snakemake.params.config)
+    for v in result["violations"]:
+        print(f"leak: {v}", file=sys.stderr)
+    if not result["ok"]:
+        sys.exit(f"separation violated: {result['violations'][0]} (+{len(result['violations']) - 1} more, see {snakemake.log[0]})")
+    write_json(result, snakemake.output[0])

@@ -1,0 +1,10 @@
+"""Export the run's provenance as W3C PROV-JSON."""
+
+import sys
+
+from embodied_snap.provenance import tracked
+from embodied_snap.provexport import export
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    export(".", snakemake.output[0])

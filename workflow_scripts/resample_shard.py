@@ -1,0 +1,17 @@
+"""One shard of groups on the 50 Hz grid, each group on its own."""
+
+import sys
+
+from embodied_snap.provenance import tracked
+from embodied_snap.resample import resample_shard
+from embodied_snap.validate import RecordingError
+
+sys.stderr = open(snakemake.log[0], "w")
+p = snakemake.params
+try:
+    with tracked(snakemake):
+        df = resample_shard(p.raw, p.groups, p.hz, p.max_gap_s)
+        df.to_parquet(snakemake.output[0], index=False, compression="zstd")
+except RecordingError as e:
+    print(f"error: {e}", file=sys.stderr)
+    sys.exit(f"error: {e}")

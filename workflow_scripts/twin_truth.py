@@ -1,0 +1,11 @@
+"""The simulated rig's true parameters; only the twin validation report may read them."""
+
+import sys
+
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.twin.truth import truth
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    write_json(truth(snakemake.params.seed, snakemake.params.sessions), snakemake.output[0])

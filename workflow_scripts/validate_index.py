@@ -1,0 +1,21 @@
+"""index.csv against the group folders (ids, sets, files, row counts)."""
+
+import sys
+from pathlib import Path
+
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.validate import RecordingError, validate_index
+
+sys.stderr = open(snakemake.log[0], "w")
+try:
+    with tracked(snakemake):
+        index = validate_index(Path(snakemake.input.index).parent)
+        counts = index.groupby(["evidence_set", "category"]).size()
+        write_json(
+            {"groups": len(index), "counts": {f"{a}/{b}": int(n) for (a, b), n in counts.items()}},
+            snakemake.output[0],
+        )
+except RecordingError as e:
+    print(f"error: {e}", file=sys.stderr)
+    sys.exit(f"error: {e}")

@@ -1,0 +1,26 @@
+"""Windows of one split from that split's resampled shards only."""
+
+import sys
+
+import pandas as pd
+
+from embodied_snap.provenance import tracked
+from embodied_snap.windows import make_windows, save_windows
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    frames = pd.concat([pd.read_parquet(f) for f in snakemake.input.shards], ignore_index=True)
+    w = snakemake.params.w
+    arrays = make_windows(
+        frames,
+        history=w["history"],
+        lookahead=w["lookahead"],
+        horizon=w["horizon"],
+        stride=w["stride"],
+        snap_speed_mps=w["snap_speed_mps"],
+        fast_speed_mps=w["fast_speed_mps"],
+    )
+    save_windows(snakemake.output[0], arrays)
+    n = len(arrays["anchors"])
+    print(f"{snakemake.wildcards.role}: {len(arrays['group_ids'])} groups, {n} windows, "
+          f"{int(arrays['snap'].sum())} snap, {int(arrays['fast'].sum())} fast", file=sys.stderr)
