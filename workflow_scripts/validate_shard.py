@@ -13,7 +13,7 @@ sys.stderr = open(snakemake.log[0], "w")
 p = snakemake.params
 try:
     with tracked(snakemake):
-        index = pd.read_csv(snakemake.input.index, dtype={"group_id": str})
+        index = pd.read_csv(snakemake.input.index, dtype=str)
         raw = Path(snakemake.input.index).parent
         entries = validate_shard(raw, p.groups, index)
         write_json({"shard": snakemake.wildcards.shard, "groups": entries}, snakemake.output[0])
