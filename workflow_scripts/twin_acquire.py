@@ -1,15 +1,21 @@
-"""Record one shard of acquisition groups on the simulated rig (thin adapter)."""
+"""Record one shard of acquisition groups on the simulated rig (thin adapter).
 
+Recordings are source data: written read-only, like Snakemake's protected outputs."""
+
+import os
 import sys
 
 import pandas as pd
 
 from embodied_snap.provenance import tracked
-from embodied_snap.rawformat import write_json
+from embodied_snap.rawformat import group_paths, write_json
 from embodied_snap.twin.acquire import acquire_groups
 
 sys.stderr = open(snakemake.log[0], "w")
-with tracked(snakemake):
+with tracked(snakemake) as recordings:
     p = snakemake.params
     rows = acquire_groups(pd.DataFrame(p.groups), p.raw, seed=p.seed, dt=p.dt)
+    recordings += [str(f) for r in rows for f in group_paths(p.raw, r["group_id"]).values()]
+    for f in recordings:
+        os.chmod(f, 0o444)
     write_json({"shard": snakemake.wildcards.shard, "groups": rows}, snakemake.output[0])
