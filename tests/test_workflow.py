@@ -91,16 +91,19 @@ def test_audit_of_train_windows_names_train_groups_only(wf):
     rep = json.loads(r.stdout)
     split = pd.read_csv(wf / "results/splits/split.csv")
     train = set(split[split.role == "train"].group_id)
-    fed = {g for gs in rep["fed"].values() for g in gs}
-    assert fed == train
+    sets = rep["evidence_sets"]
+    assert {g for s in sets.values() for g in s["fed"]} == train
     assert not rep["stale"]
-    assert {"attachment", "delay_sweep", "servo_calibration"} <= set(rep["not_fed"])
+    never = {name for name, s in sets.items() if not s["fed"]}
+    assert never == {"attachment", "delay_sweep", "servo_calibration", "release_mode", "held_base"}
 
 
 def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
     f = wf / "raw_data/groups/att_0003/mocap.parquet"
-    st = f.stat()
-    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))  # a new recording, as Snakemake sees it
+    df = pd.read_parquet(f)
+    df.loc[10, "tip_x"] += 1e-4  # a re-recorded trial: one sample moved by 0.1 mm
+    f.chmod(0o644)
+    df.to_parquet(f, index=False)
     jobs = dry_jobs(wf, "results/figures")
     assert jobs == sorted([
         ("validate_shard", "shard=attachment-00"),

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from ..rawformat import CATEGORIES, EVIDENCE_SETS
@@ -12,47 +11,58 @@ from . import style
 def plot_overview(manifest: dict, pdf: str, png: str) -> None:
     style.setup()
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import MaxNLocator
 
     g = pd.DataFrame(manifest["groups"])
     sets = [s for s in EVIDENCE_SETS if s in set(g.evidence_set)]
-    fig, ax = plt.subplots(1, 4, figsize=(style.TEXT_WIDTH_IN, 2.0), layout="constrained")
+    colour = {s: style.PALETTE[i % len(style.PALETTE)] for i, s in enumerate(sets)}
+    fig, ax = plt.subplots(2, 2, figsize=(style.TEXT_WIDTH_IN, 4.4), layout="constrained")
 
-    # (a) groups per evidence set, stacked by category
-    bottom = np.zeros(len(sets))
-    for ci in range(max(len(c) for c in CATEGORIES.values())):
-        n = [
-            (g[(g.evidence_set == s) & (g.category == CATEGORIES[s][ci])].shape[0] if ci < len(CATEGORIES[s]) else 0)
-            for s in sets
-        ]
-        ax[0].barh(sets, n, left=bottom, color=style.PALETTE[ci], height=0.7)
-        bottom += n
-    for y, n in enumerate(bottom):
-        ax[0].text(n, y, f" {int(n)}", va="center", fontsize=6)
-    ax[0].invert_yaxis()
-    ax[0].set_xlabel("groups (bars split by category)")
-    style.panel_label(ax[0], "a")
+    # (a) groups per evidence set and category (paper Table I)
+    rows = [(s, c) for s in sets for c in CATEGORIES[s] if ((g.evidence_set == s) & (g.category == c)).any()]
+    n = [int(((g.evidence_set == s) & (g.category == c)).sum()) for s, c in rows]
+    a = ax[0, 0]
+    a.barh(range(len(rows)), n, color=[colour[s] for s, _ in rows], height=0.7)
+    for y, k in enumerate(n):
+        a.text(k, y, f" {k}", va="center", fontsize=6)
+    a.set_yticks(range(len(rows)), [f"{s} / {c}" if len(CATEGORIES[s]) > 1 else s for s, c in rows], fontsize=6)
+    a.invert_yaxis()
+    a.set_xlabel("acquisition groups")
+    a.set_xlim(0, max(n) * 1.15)
+    style.panel_label(a, "a")
 
-    # (b) groups per session and evidence set
+    # (b) groups per session and evidence set: every set spans the session-to-session variation
     tab = g.pivot_table(index="evidence_set", columns="session", values="group_id", aggfunc="count", fill_value=0)
     tab = tab.reindex(sets)
-    im = ax[1].imshow(tab.to_numpy(), aspect="auto", cmap="Blues")
-    ax[1].set_yticks(range(len(sets)), [""] * len(sets))
-    ax[1].set_xticks(range(tab.shape[1]), [c.lstrip("s") for c in tab.columns], fontsize=5)
-    ax[1].set_xlabel("session")
-    fig.colorbar(im, ax=ax[1], shrink=0.8, label="groups")
-    style.panel_label(ax[1], "b")
+    b = ax[0, 1]
+    im = b.imshow(tab.to_numpy(), aspect="auto", cmap="Blues", vmin=0)
+    b.set_yticks(range(len(sets)), sets, fontsize=6)
+    b.set_xticks(range(tab.shape[1]), [c.lstrip("s") for c in tab.columns], fontsize=6)
+    b.set_xlabel("session")
+    cb = fig.colorbar(im, ax=b, shrink=0.9, label="groups")
+    cb.locator = MaxNLocator(integer=True)
+    cb.update_ticks()
+    style.panel_label(b, "b")
 
-    # (c) recording durations
-    ax[2].boxplot([g[g.evidence_set == s].duration_s for s in sets], orientation="horizontal", widths=0.6,
-                  flierprops={"markersize": 2})
-    ax[2].set_yticks(range(1, len(sets) + 1), [""] * len(sets))
-    ax[2].invert_yaxis()
-    ax[2].set_xlabel("duration (s)")
-    style.panel_label(ax[2], "c")
+    # (c) recording durations per evidence set
+    c = ax[1, 0]
+    bp = c.boxplot([g[g.evidence_set == s].duration_s for s in sets], orientation="horizontal", widths=0.6,
+                   flierprops={"markersize": 2}, patch_artist=True, medianprops={"color": "k"})
+    for patch, s in zip(bp["boxes"], sets):
+        patch.set_facecolor(colour[s])
+        patch.set_alpha(0.6)
+    c.set_yticks(range(1, len(sets) + 1), sets, fontsize=6)
+    c.invert_yaxis()
+    c.set_xlabel("recording duration (s)")
+    style.panel_label(c, "c")
 
-    # (d) motion-capture tracking
-    ax[3].hist(100 * g.mocap_valid_fraction, bins=30, color=style.PALETTE[0])
-    ax[3].set_xlabel("valid mocap samples (%)")
-    ax[3].set_ylabel("groups")
-    style.panel_label(ax[3], "d")
+    # (d) motion-capture tracking: dropouts are bridged when short, rejected when long
+    d = ax[1, 1]
+    for s in sets:
+        d.hist(100 * g[g.evidence_set == s].mocap_valid_fraction, bins=20, histtype="step", color=colour[s], label=s)
+    d.set_xlabel("valid motion-capture samples (%)")
+    d.set_ylabel("groups")
+    d.yaxis.set_major_locator(MaxNLocator(integer=True))
+    d.legend(frameon=False, fontsize=5)
+    style.panel_label(d, "d")
     style.save(fig, pdf, png)
