@@ -48,10 +48,14 @@ rule twin_truth:
         "../workflow_scripts/twin_truth.py"
 
 
+PHENOMENA_SETS = ["release_mode", "delay_sweep", "attachment"]
+
+
 rule twin_phenomena:
     """What the simulated rig shows, read from its recordings as the pipeline reads them."""
     input:
-        shards=expand("results/raw/shards/{shard}.json", shard=SHARDS),
+        raw=raw_of(evidence_set=PHENOMENA_SETS),
+        valid=validated(evidence_set=PHENOMENA_SETS),
         code=code("twin/phenomena"),
     output:
         "results/twin/phenomena.json",
@@ -63,9 +67,9 @@ rule twin_phenomena:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        groups=PLAN[["group_id", "evidence_set", "category", "session"]].to_dict(
-            "records"
-        ),
+        groups=PLAN[PLAN.evidence_set.isin(PHENOMENA_SETS)][
+            ["group_id", "evidence_set", "category", "session"]
+        ].to_dict("records"),
     script:
         "../workflow_scripts/twin_phenomena.py"
 
