@@ -18,10 +18,20 @@ def _config(path: str, budget: str | None) -> dict:
     return cfg
 
 
+def _acquire(args):
+    from .twin.acquire import acquire_groups
+
+    part, raw, seed, dt = args
+    return acquire_groups(part, raw, seed=seed, dt=dt, progress=False)
+
+
 def cmd_twin(a) -> int:
+    """The simulated rig outside Snakemake: the same plan, seeds and writer as the workflow."""
+    import time
+    from multiprocessing import Pool
+
     from .plan import load_plan
     from .rawformat import write_index, write_json
-    from .twin.acquire import acquire_groups
     from .twin.truth import truth
 
     cfg = _config(a.config, a.budget)
@@ -29,10 +39,19 @@ def cmd_twin(a) -> int:
     if a.evidence_set:
         plan = plan[plan.evidence_set.isin(a.evidence_set)]
     raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
-    rows = acquire_groups(plan, raw, seed=cfg["seed"], dt=cfg["twin"]["dt"])
+    if a.action == "phenomena":
+        from .twin.phenomena import phenomena
+
+        print(json.dumps(phenomena(raw, plan), indent=1))
+        return 0
+    t0 = time.perf_counter()
+    # Every group's randomness comes from (seed, group_id) alone, so any partition gives the same bytes.
+    parts = [(plan.iloc[k :: a.jobs], raw, cfg["seed"], cfg["twin"]["dt"]) for k in range(a.jobs)]
+    with Pool(a.jobs) as pool:
+        rows = [r for part in pool.map(_acquire, parts) for r in part]
     write_index(rows, raw / "index.csv")
     write_json(truth(cfg["seed"], cfg["sessions"]), raw / "twin_truth.json")
-    print(f"{len(rows)} groups written to {raw}")
+    print(f"{len(rows)} groups written to {raw} in {time.perf_counter() - t0:.1f} s ({a.jobs} jobs)")
     return 0
 
 
@@ -79,12 +98,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="esnap", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
 
-    t = sub.add_parser("twin", help="record groups on the simulated rig (outside Snakemake)")
-    t.add_argument("action", choices=["acquire"])
+    t = sub.add_parser("twin", help="the simulated rig outside Snakemake: record groups, or measure its phenomena")
+    t.add_argument("action", choices=["acquire", "phenomena"])
     t.add_argument("--config", default="config.yaml")
     t.add_argument("--budget", choices=["paper", "quick", "smoke"])
     t.add_argument("--raw-dir")
     t.add_argument("--evidence-set", action="append", help="only these evidence sets (repeatable)")
+    t.add_argument("--jobs", type=int, default=2, help="processes to simulate in")
     t.set_defaults(fn=cmd_twin)
 
     v = sub.add_parser("validate", help="check a recording tree against the rig format")

@@ -1,0 +1,133 @@
+"""What the operator commands in each evidence set: nine servo-goal traces plus the program record.
+
+Everything is in servo ticks and seconds. The preload map (`section_goals`) follows Eq. 1 of the
+paper: to bend section p by rho_p / (d_p/k) rad toward bearing phi, every cable that traverses p
+takes up rho_p * cos(phi - alpha_k); the antagonists (cos < 0) pay out 20 % more than that so they
+never fight the bend. During a release, goals only ever pay out (a released cable is never taken
+up again inside a trial), so the antagonists cannot pull against a latched fold.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+RATE_PLAN = 0.9 * 3140.0  # tick/s: preload ramps stay under the servo ceiling
+PHI0_DEG = 210.0  # bearing the primitive is validated around (paper IV-C)
+OPERATING = dict(rho1=3100.0, rho2=2750.0, rho3=2900.0, s3=30.0, dphi=0.0, tau=0.55)
+POLICY_BOX = dict(rho1=(2400, 3700), rho2=(2100, 3300), rho3=(2200, 3600), s3=(0, 1800), dphi=(-25, 25), tau=(0.45, 0.675))
+SWEEP_LOW = (0.15, 0.30)  # delay-sweep delays; none in (0.30, 0.45), as in the paper
+SWEEP_HIGH = (0.45, 0.50, 0.55, 0.60, 0.65, 0.70, 0.75)
+T_HANG = 0.25  # s of free hanging before anything moves
+T_SETTLE = 0.5  # s held at full preload
+T_S2 = 1.0  # s from S3 slack to the start of the S2 release: the latched tip settles
+S2_RAMP = 0.13  # s (paper III-B)
+T_AFTER = 1.1  # s recorded after the S1 release
+
+
+def sweep_tau(n: int) -> float:
+    """Delay of the n-th (1-based) sweep trial: 2 of every 11 trials at a short delay, so the
+    paper's 33 trials give 6 at <= 0.30 s and 27 at >= 0.45 s."""
+    i = n - 1
+    if i % 11 < 2:
+        return SWEEP_LOW[i % 11]
+    k = (i // 11) * 9 + i % 11 - 2  # index among the long-delay trials
+    return SWEEP_HIGH[k % len(SWEEP_HIGH)]
+
+
+def section_goals(rho, bearing_deg: float, slack3: float = 0.0) -> np.ndarray:
+    """Nine goals (ticks) for section take-ups rho = (rho1, rho2, rho3) toward a bearing."""
+    c = np.cos(np.deg2rad(bearing_deg - np.array([0.0, 120.0, 240.0])))
+    g = np.where(c >= 0, c, 1.2 * c)
+    cum = np.cumsum(np.asarray(rho, float))
+    w = (cum[:, None] * g[None, :]).reshape(9)
+    w[6:9] -= slack3
+    return w
+
+
+def _preload(rho, bearing, dt):
+    """Rest, then a linear ramp to the preload that every servo can follow (per-section scaling:
+    all nine goals reach their targets together, so no cable runs ahead of its neighbours)."""
+    W = section_goals(rho, bearing)
+    dur = max(np.abs(W).max() / RATE_PLAN, 0.2)
+    return W, dur
+
+
+def primitive(p: dict, bearing: float, dt: float, ramp_s: float = 0.0, s2_ramp: float = S2_RAMP):
+    """The four-stage snap primitive (paper III-B): preload, S3 slack, S2 over s2_ramp, S1 after tau.
+
+    ramp_s > 0 stretches the distal slackening (S3 slack and S2 release) over ramp_s seconds
+    (the 'ramped' release mode); S1 then follows tau after the ramp ends.
+    """
+    rho = (p["rho1"], p["rho2"], p["rho3"])
+    W, dur = _preload(rho, bearing, dt)
+    t_s = T_HANG + dur + T_SETTLE
+    if ramp_s > 0:
+        t2, s2_ramp = t_s, ramp_s
+    else:
+        t2 = t_s + T_S2
+    t1 = t2 + s2_ramp + p["tau"] if ramp_s > 0 else t2 + p["tau"]
+    t_end = t1 + T_AFTER
+    t = np.arange(int(round(t_end / dt))) * dt
+    goals = np.zeros((len(t), 9))
+    ramp = (t >= T_HANG) & (t < T_HANG + dur)
+    goals[ramp] = W[None, :] * ((t[ramp] - T_HANG) / dur)[:, None]
+    goals[(t >= T_HANG + dur) & (t < t_s)] = W
+    rel = t >= t_s
+    tr = t[rel]
+    if ramp_s > 0:
+        a3 = a2 = np.clip(1.0 - (tr - t_s) / ramp_s, 0.0, 1.0)
+    else:
+        a3 = np.zeros_like(tr)
+        a2 = np.where(tr < t2, 1.0, np.clip(1.0 - (tr - t2) / s2_ramp, 0.0, 1.0))
+    a1 = (tr < t1).astype(float)
+    c = _g(bearing)
+    cum = np.stack([rho[0] * a1, rho[0] * a1 + rho[1] * a2, rho[0] * a1 + rho[1] * a2 + rho[2] * a3], 1)
+    g = (cum[:, :, None] * c[None, None, :]).reshape(-1, 9)
+    g[:, 6:9] -= (p["s3"] * (1.0 - a3))[:, None]
+    # a released cable is never taken up again: running minimum from the full preload
+    goals[rel] = np.minimum.accumulate(np.vstack([W[None, :], g]), axis=0)[1:]
+    times = dict(t_preload=T_HANG, t_slack=t_s, t_s2=t2, t_s1=t1)
+    return goals, times
+
+
+def direct_release(p: dict, bearing: float, dt: float, sync: bool = True):
+    """Direct tendon-driven release: a preload, then the pull-side goals back to rest. With
+    `sync` the nine goals ramp down together at the rated ceiling of the longest cable (the
+    section-wise rate limit of the paper's protocol, so no cable runs ahead and goes spuriously
+    slack); otherwise every goal steps to rest and each servo pays out at its own ceiling. The tip
+    curl stays below the fold angle (no latch)."""
+    rho = (p["rho1"], p["rho2"], p["rho3"])
+    W, dur = _preload(rho, bearing, dt)
+    t_r = T_HANG + dur + T_SETTLE
+    T_rel = np.abs(W).max() / 3140.0 if sync else 0.0
+    t_end = t_r + np.abs(W).max() / 3000.0 + 0.6
+    t = np.arange(int(round(t_end / dt))) * dt
+    goals = np.zeros((len(t), 9))
+    ramp = (t >= T_HANG) & (t < T_HANG + dur)
+    goals[ramp] = W[None, :] * ((t[ramp] - T_HANG) / dur)[:, None]
+    goals[(t >= T_HANG + dur) & (t < t_r)] = W
+    rel = t >= t_r
+    a = np.clip(1.0 - (t[rel] - t_r) / T_rel, 0.0, 1.0) if sync else np.zeros(rel.sum())
+    # pull side to rest; antagonists stay paid out
+    goals[rel] = np.minimum(W[None, :] * a[:, None], np.minimum(W, 0.0)[None, :] + np.maximum(W, 0.0)[None, :] * a[:, None])
+    return goals, dict(t_preload=T_HANG, t_release=t_r)
+
+
+def burst(section: int, bearing: float, amp: float, dt: float):
+    """Servo-calibration burst: one section's three cables step to a take-up and back."""
+    # only that section's own cables move (the others stay at rest)
+    mask = np.zeros(9, bool)
+    mask[3 * (section - 1) : 3 * section] = True
+    W = np.where(mask, amp * np.tile(_g(bearing), 3), 0.0)
+    t_up, hold = 0.3, 0.9
+    t_dn = t_up + hold
+    t_end = t_dn + 0.8
+    t = np.arange(int(round(t_end / dt))) * dt
+    goals = np.zeros((len(t), 9))
+    goals[(t >= t_up) & (t < t_dn)] = W
+    return goals, dict(t_up=t_up, t_down=t_dn)
+
+
+def _g(bearing):
+    c = np.cos(np.deg2rad(bearing - np.array([0.0, 120.0, 240.0])))
+    return np.where(c >= 0, c, 1.2 * c)
