@@ -25,6 +25,7 @@ if config["raw_data"]["source"] == "twin":
 
 
 include: "rules/data.smk"
+include: "rules/characterize.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -37,4 +38,5 @@ rule all:
         expand("results/data/50hz/{shard}.parquet", shard=SHARDS),
         "results/lineage/separation.json",
         "results/lineage/prov.json",
+        "results/characterize/claims.csv",
         TWIN_REPORTS,

@@ -75,10 +75,13 @@ rule twin_phenomena:
 
 
 rule twin_validation:
-    """The one reader of the twin's ground truth: phenomena beside the paper's hardware values."""
+    """The one reader of the twin's ground truth: phenomena beside the paper's hardware values, and
+    the fitted lever ratios and servo constants beside the true ones."""
     input:
         truth=f"{RAW}/twin_truth.json",
         phenomena="results/twin/phenomena.json",
+        kinematics="results/characterize/kinematics.json",
+        servo="results/characterize/servo.json",
     output:
         "results/twin/validation.json",
     log:

@@ -1,0 +1,103 @@
+"""Kinematics from the 240 Hz motion capture: tip speed, section bend angle and bend rate.
+
+A section's bend is the rotation between its proximal and distal tracked frames (base->s1,
+s1->s2, s2->tip). Every tracked frame is identity on the straight hanging arm, so a frame's
+tangent is its local -Y axis.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .. import rawformat as RF
+
+SECTION_FRAMES = (("base", "s1"), ("s1", "s2"), ("s2", "tip"))
+MAX_GAP_S = 0.1  # dropouts up to this long are bridged, as in the 50 Hz resampling
+
+
+def qmul(a, b):
+    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
+    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
+    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], -1)
+
+
+def qconj(q):
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def qrotate(q, v):
+    """Rotate vector(s) v by unit quaternion(s) q (w, x, y, z)."""
+    qv = np.concatenate([np.zeros(np.shape(v)[:-1] + (1,)), v], -1)
+    return qmul(qmul(q, qv), qconj(q))[..., 1:]
+
+
+def track(mc: pd.DataFrame, body: str, fields=("x", "y", "z")) -> np.ndarray:
+    """One body's columns, invalid samples NaN, short dropouts bridged linearly."""
+    x = mc[[f"{body}_{f}" for f in fields]].copy()
+    x[~mc[f"{body}_valid"].to_numpy(bool)] = np.nan
+    x = x.interpolate(limit=int(round(MAX_GAP_S * RF.MOCAP_HZ)), limit_area="inside").to_numpy()
+    if len(fields) == 4:
+        x = x / np.linalg.norm(x, axis=1, keepdims=True)
+    return x
+
+
+def smooth3(x: np.ndarray) -> np.ndarray:
+    """Centred 3-sample moving average along time (ends NaN): mocap noise is 0.3 mm per sample."""
+    y = np.full(x.shape, np.nan)
+    y[1:-1] = (x[:-2] + x[1:-1] + x[2:]) / 3
+    return y
+
+
+def speed(x: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Speed (m/s) by central differences of the smoothed positions."""
+    xs = smooth3(x)
+    v = np.full(len(t), np.nan)
+    v[1:-1] = np.linalg.norm(xs[2:] - xs[:-2], axis=1) / (t[2:] - t[:-2])
+    return v
+
+
+def tip_speed(mc: pd.DataFrame) -> np.ndarray:
+    return speed(track(mc, "tip"), mc.t.to_numpy())
+
+
+def bend(q_prox: np.ndarray, q_dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bend magnitude theta (rad) and direction phi (rad, about the hanging axis from +X toward
+    +Z, in the proximal frame): the angle between the proximal and distal tangents."""
+    tang = qrotate(qmul(qconj(q_prox), q_dist), np.array([0.0, -1.0, 0.0]))
+    theta = np.arccos(np.clip(-tang[..., 1], -1.0, 1.0))
+    phi = np.arctan2(tang[..., 2], tang[..., 0])
+    return theta, phi
+
+
+def section_bends(mc: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """theta, phi of S1..S3 over time, each (n, 3)."""
+    Q = {b: track(mc, b, ("qw", "qx", "qy", "qz")) for b in ("base", "s1", "s2", "tip")}
+    th, ph = zip(*(bend(Q[a], Q[b]) for a, b in SECTION_FRAMES))
+    return np.stack(th, 1), np.stack(ph, 1)
+
+
+def section_rates(mc: pd.DataFrame) -> np.ndarray:
+    """Bend rate (rad/s) of S1..S3 over time, (n, 3): the angular speed of each section's
+    relative rotation (so a bend that swings through straight still counts), smoothed like speed."""
+    Q = {b: track(mc, b, ("qw", "qx", "qy", "qz")) for b in ("base", "s1", "s2", "tip")}
+    t = mc.t.to_numpy()
+    out = np.full((len(t), 3), np.nan)
+    for s, (a, b) in enumerate(SECTION_FRAMES):
+        rel = qmul(qconj(Q[a]), Q[b])
+        d = qmul(qconj(rel[:-2]), rel[2:])
+        ang = 2 * np.arctan2(np.linalg.norm(d[:, 1:], axis=1), np.abs(d[:, 0]))
+        w = np.full(len(t), np.nan)
+        w[1:-1] = ang / (t[2:] - t[:-2])
+        out[:, s] = smooth3(w[:, None])[:, 0]
+    return out
+
+
+def peak(v: np.ndarray, t: np.ndarray, t_from: float) -> tuple[float, float]:
+    """(peak value, its time) from t_from on (NaN if nothing there)."""
+    m = (t >= t_from) & ~np.isnan(v)
+    if not m.any():
+        return float("nan"), float("nan")
+    k = np.flatnonzero(m)[np.argmax(v[m])]
+    return float(v[k]), float(t[k])

@@ -1,0 +1,35 @@
+"""Release modes (paper III-A/B, Fig. 2b): peak tip speed of direct, ramped and instantaneous
+releases; the direct-release range; the fraction of instantaneous releases above 1 m/s; section
+bend rates at the operating point (the instantaneous releases are primitives around it) and their
+ratio to the Eq. 2 ceilings."""
+
+from __future__ import annotations
+
+import numpy as np
+from statsmodels.stats.proportion import proportion_confint
+
+SNAP_MPS = 1.0  # the empirical attachment threshold (paper III-A)
+
+
+def summarize(rows, ceilings_rad_s) -> dict:
+    by = {c: np.array([r["v_peak"] for r in rows if r["category"] == c and np.isfinite(r["v_peak"])])
+          for c in ("direct", "ramped", "instantaneous")}
+    inst = by["instantaneous"]
+    n_fast = int((inst > SNAP_MPS).sum())
+    rates = np.array([r["rate_peak"] for r in rows if r["category"] == "instantaneous"], float)
+    med_rates = np.nanmedian(rates, axis=0) if len(rates) else np.full(3, np.nan)
+    q = lambda x, p: [float(v) for v in np.percentile(x, p)] if len(x) else [float("nan")] * len(p)  # noqa: E731
+    return dict(
+        speeds={c: [float(v) for v in x] for c, x in by.items()},
+        direct_range_mps=[float(by["direct"].min()), float(by["direct"].max())] if len(by["direct"]) else [np.nan] * 2,
+        direct_median_mps=float(np.median(by["direct"])) if len(by["direct"]) else float("nan"),
+        instant_n=int(len(inst)), instant_over_1mps=n_fast,
+        instant_fraction_over_1mps=n_fast / len(inst) if len(inst) else float("nan"),
+        instant_fraction_ci95=[float(x) for x in proportion_confint(n_fast, len(inst), method="wilson")] if len(inst) else [np.nan] * 2,
+        operating_tip_speed_iqr_mps=q(inst, [25, 75]),
+        operating_tip_speed_median_mps=float(np.median(inst)) if len(inst) else float("nan"),
+        operating_section_rate_dps=[float(np.degrees(r)) for r in med_rates],
+        operating_rate_over_ceiling=[float(r / c) for r, c in zip(med_rates, ceilings_rad_s)],
+        snap_over_direct=float(np.median(inst) / np.median(by["direct"])) if len(inst) and len(by["direct"]) else float("nan"),
+        ramped_quantiles_mps=q(by["ramped"], [10, 50, 90]),
+    )

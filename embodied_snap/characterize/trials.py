@@ -1,0 +1,54 @@
+"""Per-trial features of a release recording: what every release, attachment, snap and delay fit
+reads. Only recordings and their program/labels, nothing from the simulator."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import rawformat as RF
+from . import load
+from . import mocap as M
+
+
+
+def features(mc, meta) -> dict:
+    t = mc.t.to_numpy()
+    t0 = load.release_start(meta)
+    v_peak, t_peak = M.peak(M.tip_speed(mc), t, t0)
+    rates = M.section_rates(mc)
+    out = dict(v_peak=v_peak, t_peak=t_peak, t_release=t0,
+               rate_peak=[M.peak(rates[:, s], t, t0)[0] for s in range(3)],
+               closest_m=np.nan, lateral_m=np.nan, tilt_deg=np.nan)
+    if "target" not in meta or not mc.target_valid.any():
+        return out
+    # Approach of the tracked tip (distal end of S3; the compliant end effector beyond it is not
+    # tracked); the cup axis is the tip frame's -Y (rawformat.TIP_AXIS_LOCAL).
+    axis = M.qrotate(M.track(mc, "tip", ("qw", "qx", "qy", "qz")), np.array(RF.TIP_AXIS_LOCAL))
+    cup = M.track(mc, "tip")
+    tgt = M.track(mc, "target")
+    d = np.linalg.norm(cup - tgt, axis=1)
+    d[t < t0] = np.nan  # the approach after the release began (the block may be carried after)
+    if np.all(np.isnan(d)):
+        return out
+    k = int(np.nanargmin(d))
+    # Face normal of the struck face in the block's frame ("+z" -> local +Z), into the lab.
+    face = meta["target"].get("face", "+z")
+    n_loc = np.zeros(3)
+    n_loc["xyz".index(face[1])] = 1.0 if face[0] == "+" else -1.0
+    n = M.qrotate(M.track(mc, "target", ("qw", "qx", "qy", "qz"))[k], n_loc)
+    # Tilt: angle between the cup axis and the direction into the face (0 = square on).
+    tilt = np.degrees(np.arccos(np.clip(axis[k] @ -n, -1.0, 1.0)))
+    out.update(closest_m=float(d[k]), lateral_m=float(np.hypot(*(cup[k] - tgt[k])[[0, 2]])), tilt_deg=float(tilt))
+    return out
+
+
+def table(raw_dir, groups) -> list[dict]:
+    """Features of each group, with its program and outcome labels."""
+    rows = []
+    for g in groups:
+        mc, _, meta = load.group(raw_dir, g["group_id"])
+        lab, prog = meta.get("labels", {}), meta.get("program", {})
+        rows.append(dict(g, **features(mc, meta), attached=lab.get("attached"),
+                         snap_speed_event=lab.get("snap_speed_event"),
+                         **{k: prog.get(k) for k in ("kind", "rho1", "rho2", "rho3", "tau", "ramp_s")}))
+    return rows

@@ -1,0 +1,259 @@
+# Hardware characterisation (paper section III and V-C; DESIGN section 4, step 4): one rule and one
+# artifact per fit. Inputs are exactly the recordings a fit may see (raw_of), the validation
+# records of their shards, and the package modules the fit imports (code), so the DAG shows what
+# fed each number.
+
+CHAR = "results/characterize"
+
+
+CAL = dict(evidence_set="servo_calibration")
+CAL_GROUPS = sorted(PLAN[PLAN.evidence_set == "servo_calibration"].group_id)
+HELD_GROUPS = sorted(PLAN[PLAN.evidence_set == "held_base"].group_id)
+SNAP_GROUPS = dict(evidence_set="dynamics", category="characterisation", role="train")
+TRIALS = ("characterize/trials", "characterize/mocap", "characterize/load", "rawformat")
+
+
+rule characterize_kinematics:
+    """Eq. 1: lever ratios d_p/k by quantile regression on the taut envelope; travel per tick."""
+    input:
+        raw=raw_of(**CAL),
+        valid=validated(**CAL),
+        code=code(
+            "characterize/kinematics",
+            "characterize/mocap",
+            "characterize/load",
+            "rawformat",
+        ),
+    output:
+        f"{CHAR}/kinematics.json",
+    log:
+        "logs/characterize/kinematics.log",
+    benchmark:
+        "benchmarks/characterize/kinematics.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=CAL_GROUPS,
+        quantile=config["characterize"]["envelope_quantile"],
+        tendon_radius_m=config["rig"]["tendon_radius_m"],
+    script:
+        "../workflow_scripts/characterize_kinematics.py"
+
+
+rule characterize_servo:
+    """First-order fit over all calibration bursts; Eq. 2 ceilings from the rated speed."""
+    input:
+        raw=raw_of(**CAL),
+        valid=validated(**CAL),
+        kinematics=f"{CHAR}/kinematics.json",
+        code=code("characterize/servo", "characterize/load", "rawformat", "reference"),
+        reference="reference/paper_values.yaml",
+    output:
+        f"{CHAR}/servo.json",
+    log:
+        "logs/characterize/servo.log",
+    benchmark:
+        "benchmarks/characterize/servo.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=CAL_GROUPS,
+    script:
+        "../workflow_scripts/characterize_servo.py"
+
+
+rule characterize_release:
+    """Peak tip speed per release mode; section rates at the operating point over the ceilings."""
+    input:
+        raw=raw_of(evidence_set="release_mode"),
+        valid=validated(evidence_set="release_mode"),
+        servo=f"{CHAR}/servo.json",
+        code=code("characterize/release", *TRIALS),
+    output:
+        f"{CHAR}/release.json",
+    log:
+        "logs/characterize/release.log",
+    benchmark:
+        "benchmarks/characterize/release.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=PLAN[PLAN.evidence_set == "release_mode"][
+            ["group_id", "category", "session"]
+        ].to_dict("records"),
+    script:
+        "../workflow_scripts/characterize_release.py"
+
+
+rule characterize_attachment:
+    """Speed/cup-tilt logistic model, session-grouped CV AUC; the 1 m/s and 150 mm counts."""
+    input:
+        raw=raw_of(evidence_set="attachment"),
+        valid=validated(evidence_set="attachment"),
+        code=code("characterize/attachment", *TRIALS),
+    output:
+        f"{CHAR}/attachment.json",
+    log:
+        "logs/characterize/attachment.log",
+    benchmark:
+        "benchmarks/characterize/attachment.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=PLAN[PLAN.evidence_set == "attachment"][
+            ["group_id", "category", "session"]
+        ].to_dict("records"),
+    script:
+        "../workflow_scripts/characterize_attachment.py"
+
+
+rule characterize_snap:
+    """P_snap(rho1, rho2) from the training-split characterisation groups only: the artifact the
+    policy reward loads."""
+    input:
+        raw=raw_of(**SNAP_GROUPS),
+        valid=validated(**SNAP_GROUPS),
+        code=code("characterize/snap", "characterize/attachment", *TRIALS),
+    output:
+        f"{CHAR}/snap.json",
+    log:
+        "logs/characterize/snap.log",
+    benchmark:
+        "benchmarks/characterize/snap.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=PLAN[
+            (PLAN.evidence_set == "dynamics")
+            & (PLAN.category == "characterisation")
+            & (PLAN.role == "train")
+        ][["group_id", "category", "session"]].to_dict("records"),
+    script:
+        "../workflow_scripts/characterize_snap.py"
+
+
+rule characterize_delay_sweep:
+    """The held-out delay sweep: speed and approach over tau, attach counts, supported interval."""
+    input:
+        raw=raw_of(evidence_set="delay_sweep"),
+        valid=validated(evidence_set="delay_sweep"),
+        code=code("characterize/delay", *TRIALS),
+    output:
+        f"{CHAR}/delay_sweep.json",
+    log:
+        "logs/characterize/delay_sweep.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=PLAN[PLAN.evidence_set == "delay_sweep"][
+            ["group_id", "category", "session"]
+        ].to_dict("records"),
+    script:
+        "../workflow_scripts/characterize_delay_sweep.py"
+
+
+rule characterize_heldbase:
+    """Held-base trials: base, neighbour, servo-residual detectors and the best clock."""
+    input:
+        raw=raw_of(evidence_set="held_base"),
+        valid=validated(evidence_set="held_base"),
+        servo=f"{CHAR}/servo.json",
+        code=code(
+            "characterize/heldbase",
+            "characterize/servo",
+            "characterize/mocap",
+            "characterize/load",
+            "rawformat",
+        ),
+    output:
+        f"{CHAR}/heldbase.json",
+    log:
+        "logs/characterize/heldbase.log",
+    benchmark:
+        "benchmarks/characterize/heldbase.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        groups=HELD_GROUPS,
+        thresholds=dict(base_mm=2.0, neighbour_mm=2.0, residual_ticks=8.0),
+        window_s=0.1,
+    script:
+        "../workflow_scripts/characterize_heldbase.py"
+
+
+# A table of every fit, the held-out delay sweep included: named table_* (a report, like the
+# figures), because the separation policy lets the delay sweep reach no characterize_* rule but
+# its own.
+rule table_characterize_claims:
+    """Every number of section III and V-C beside the paper's value."""
+    input:
+        kinematics=f"{CHAR}/kinematics.json",
+        servo=f"{CHAR}/servo.json",
+        release=f"{CHAR}/release.json",
+        attachment=f"{CHAR}/attachment.json",
+        snap=f"{CHAR}/snap.json",
+        delay_sweep=f"{CHAR}/delay_sweep.json",
+        heldbase=f"{CHAR}/heldbase.json",
+        reference="reference/paper_values.yaml",
+        code=code("characterize/claims", "reference"),
+    output:
+        f"{CHAR}/claims.csv",
+    log:
+        "logs/characterize/claims.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/characterize_claims.py"
+
+
+rule fig_limits:
+    """Fig. 2: rate ceilings, release speed distributions, attachment over speed and tilt."""
+    input:
+        kinematics=f"{CHAR}/kinematics.json",
+        servo=f"{CHAR}/servo.json",
+        release=f"{CHAR}/release.json",
+        attachment=f"{CHAR}/attachment.json",
+        code=code("figures/limits", "figures/style", "characterize/attachment"),
+    output:
+        pdf="results/figs/fig2_limits.pdf",
+        png=report(
+            "results/figs/fig2_limits.png",
+            caption="../report/fig2_limits.rst",
+            category="Characterisation",
+        ),
+    log:
+        "logs/fig_limits.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        seed=config["seed"],
+    script:
+        "../workflow_scripts/fig_limits.py"
+
+
+rule fig_snap:
+    """Fig. 3: P_snap map with the operating point; speed, approach and attachment over delay."""
+    input:
+        snap=f"{CHAR}/snap.json",
+        delay_sweep=f"{CHAR}/delay_sweep.json",
+        code=code("figures/snap", "figures/style"),
+    output:
+        pdf="results/figs/fig3_snap.pdf",
+        png=report(
+            "results/figs/fig3_snap.png",
+            caption="../report/fig3_snap.rst",
+            category="Characterisation",
+        ),
+    log:
+        "logs/fig_snap.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/fig_snap.py"

@@ -1,0 +1,13 @@
+"""Attachment: speed/tilt logistic model with session-grouped CV AUC, and the threshold counts."""
+
+import sys
+
+from embodied_snap.characterize import attachment, trials
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups))
+    print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
+    write_json(out, snakemake.output[0])

@@ -1,0 +1,14 @@
+"""Delay sweep (held out from every fit): speed and approach over tau, attach counts, the
+supported timing interval."""
+
+import sys
+
+from embodied_snap.characterize import delay, trials
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    out = delay.summarize(trials.table(snakemake.params.raw, snakemake.params.groups))
+    print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
+    write_json(out, snakemake.output[0])

@@ -1,0 +1,17 @@
+"""Held-base trials: causal detectors of the base deformation against the labelled event."""
+
+import json
+import sys
+
+from embodied_snap.characterize import heldbase, load
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    p = snakemake.params
+    servo_fit = json.load(open(snakemake.input.servo))
+    tr = [dict(group_id=g, **heldbase.trial(*load.group(p.raw, g), servo_fit, p.thresholds)) for g in p.groups]
+    out = heldbase.summarize(tr, p.window_s)
+    print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
+    write_json(out, snakemake.output[0])

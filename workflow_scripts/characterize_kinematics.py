@@ -1,0 +1,18 @@
+"""Tendon kinematics (Eq. 1): lever ratios d_p/k and tendon travel per tick, from the bursts."""
+
+import sys
+
+from embodied_snap.characterize import kinematics as K
+from embodied_snap.characterize import load
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    p = snakemake.params
+    rows = [r for g in p.groups for r in K.burst_rows(*load.group(p.raw, g))]
+    fit = K.fit_levers(rows, p.quantile)
+    fit["travel_per_tick_um"] = K.travel_per_tick_um(rows, fit, p.tendon_radius_m)
+    fit["n_bursts"] = len(p.groups)
+    print(fit, file=sys.stderr)
+    write_json(dict(fit, rows=rows), snakemake.output[0])

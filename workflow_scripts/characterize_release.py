@@ -1,0 +1,16 @@
+"""Release modes: peak tip speeds, direct range, instantaneous fraction above 1 m/s, rates at the
+operating point over the Eq. 2 ceilings."""
+
+import json
+import sys
+
+from embodied_snap.characterize import release, trials
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    rows = trials.table(snakemake.params.raw, snakemake.params.groups)
+    out = release.summarize(rows, json.load(open(snakemake.input.servo))["ceiling_rad_s"])
+    print({k: v for k, v in out.items() if k != "speeds"}, file=sys.stderr)
+    write_json(out, snakemake.output[0])

@@ -1,0 +1,14 @@
+"""Snap classifier P_snap(rho1, rho2) from the training-split characterisation groups; the JSON
+is what the policy reward loads (embodied_snap.characterize.snap.load)."""
+
+import sys
+
+from embodied_snap.characterize import snap, trials
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    out = snap.fit(trials.table(snakemake.params.raw, snakemake.params.groups))
+    print({k: v for k, v in out.items() if k not in ("trials", "grid")}, file=sys.stderr)
+    write_json(out, snakemake.output[0])

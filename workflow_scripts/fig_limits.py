@@ -1,0 +1,13 @@
+"""Figure 2: actuation limits and attachment evidence."""
+
+import json
+import sys
+
+from embodied_snap.figures.limits import plot_limits
+from embodied_snap.provenance import tracked
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    i = snakemake.input
+    plot_limits(json.load(open(i.servo)), json.load(open(i.release)), json.load(open(i.attachment)),
+                snakemake.output.pdf, snakemake.output.png, snakemake.params.seed)

@@ -1,0 +1,12 @@
+"""Figure 3: snap preconditions and timing."""
+
+import json
+import sys
+
+from embodied_snap.figures.snap import plot_snap
+from embodied_snap.provenance import tracked
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    i = snakemake.input
+    plot_snap(json.load(open(i.snap)), json.load(open(i.delay_sweep)), snakemake.output.pdf, snakemake.output.png)
