@@ -1,9 +1,10 @@
 """What the simulated rig shows, computed only from its recordings (mocap, servo log, meta.json),
 the way the pipeline reads them. Never reads simulator internals or twin_truth.json.
 
-Tip speed: the `tip` body (distal end of S3) at 240 Hz, valid samples only, a 3-sample moving
-average, central differences; the peak after the release starts. Section rate: the angular speed
-of the relative rotation base->s1, s1->s2, s2->tip, same differencing. Tendon ceilings are the
+Tip speed and section bend rates are read exactly as the characterisation stage reads them
+(`embodied_snap.characterize.mocap`): the `tip` body at 240 Hz, short dropouts bridged, a 3-sample
+moving average, central differences; section rate = angular speed of the relative rotation
+base->s1, s1->s2, s2->tip. Peaks are taken from the release start on. Tendon ceilings are the
 paper's Eq. 2 with its rated 3140 tick/s and its calibrated d_p/k (hardware figures, not twin truth).
 """
 
@@ -15,70 +16,14 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
+from ..characterize.mocap import peak, section_rates, tip_speed
 
 RATED = 3140.0
 PAPER_LEVER = (2351.0, 1411.0, 1390.0)
 CEILING = tuple(RATED / x for x in PAPER_LEVER)  # rad/s, S1..S3
 OPERATING_TAU = (0.45, 0.675)
-
-
-MAX_GAP_S = 0.1  # dropouts up to this long are bridged (config resample.max_gap_s)
-
-
-def _bridged(mc: pd.DataFrame, cols: list[str], body: str) -> np.ndarray:
-    """Columns of one body on the 240 Hz grid, dropouts bridged linearly up to MAX_GAP_S
-    (longer gaps stay NaN), like the resampling stage does."""
-    x = mc[cols].copy()
-    x[~mc[f"{body}_valid"].to_numpy(bool)] = np.nan
-    lim = int(round(MAX_GAP_S * RF.MOCAP_HZ))
-    return x.interpolate(limit=lim, limit_area="inside").to_numpy()
-
-
-def _speed(x: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Central-difference speed of a 3-sample moving average (NaN where undefined)."""
-    xs = (x[:-2] + x[1:-1] + x[2:]) / 3  # centred at samples 1..n-2
-    v = np.full(len(t), np.nan)
-    v[2:-2] = np.linalg.norm(xs[2:] - xs[:-2], axis=1) / (t[3:-1] - t[1:-3])
-    return v
-
-
-def tip_speed(mc: pd.DataFrame, t_from: float = 0.0) -> tuple[float, float]:
-    """(peak tip speed m/s, its time) after t_from."""
-    t = mc.t.to_numpy()
-    x = _bridged(mc, ["tip_x", "tip_y", "tip_z"], "tip")
-    v = _speed(x, t)
-    v[t < t_from - 0.05] = np.nan
-    if np.all(np.isnan(v)):
-        return float("nan"), float("nan")
-    k = int(np.nanargmax(v))
-    return float(v[k]), float(t[k])
-
-
-def _qconj(q):
-    return q * np.array([1, -1, -1, -1])
-
-
-def section_rates(mc: pd.DataFrame, t_from: float = 0.0) -> list[float]:
-    """Peak relative angular speed (rad/s) of S1, S2, S3 from the body orientations."""
-    from .mocap import qmul
-
-    bodies = ("base", "s1", "s2", "tip")
-    t = mc.t.to_numpy()
-    Q = []
-    for b in bodies:
-        q = _bridged(mc, [f"{b}_qw", f"{b}_qx", f"{b}_qy", f"{b}_qz"], b)
-        Q.append(q / np.linalg.norm(q, axis=1, keepdims=True))
-    out = []
-    for s in range(3):
-        rel = qmul(_qconj(Q[s]), Q[s + 1])
-        d = qmul(_qconj(rel[:-2]), rel[2:])  # rotation over two samples, centred
-        ang = 2 * np.arctan2(np.linalg.norm(d[:, 1:], axis=1), np.abs(d[:, 0]))
-        w = np.full(len(t), np.nan)
-        w[1:-1] = ang / (t[2:] - t[:-2])
-        w[1:-1] = (w[:-2] + w[1:-1] + w[2:]) / 3  # same 3-sample smoothing as the speed
-        w[t < t_from - 0.05] = np.nan
-        out.append(float(np.nanmax(w)) if np.any(~np.isnan(w)) else float("nan"))
-    return out
+# Peaks are taken from slightly before the release starts (the 3-sample smoothing reaches back).
+LEAD_S = 0.05
 
 
 def _release_start(meta: dict) -> float:
@@ -99,11 +44,11 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
         p = RF.group_paths(raw_dir, row.group_id)
         meta = RF.read_meta(p["meta"])
         mc = pd.read_parquet(p["mocap"])
-        t0 = _release_start(meta)
-        v, tv = tip_speed(mc, t0)
+        t, t0 = mc.t.to_numpy(), _release_start(meta) - LEAD_S
+        v, _ = peak(tip_speed(mc), t, t0)
         rec = dict(group_id=row.group_id, es=row.evidence_set, cat=row.category, v=v, tau=meta["program"].get("tau"), attached=meta["labels"].get("attached"))
         if row.evidence_set == "delay_sweep":
-            rec["rates"] = section_rates(mc, t0)
+            rec["rates"] = [peak(w, t, t0)[0] for w in section_rates(mc).T]
         rows.append(rec)
     d = pd.DataFrame(rows)
     out: dict = {}
