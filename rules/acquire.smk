@@ -82,6 +82,8 @@ rule twin_validation:
         phenomena="results/twin/phenomena.json",
         kinematics="results/characterize/kinematics.json",
         servo="results/characterize/servo.json",
+        reference="reference/paper_values.yaml",
+        code=code("reference"),
     output:
         "results/twin/validation.json",
     log:
