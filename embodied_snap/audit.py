@@ -66,7 +66,7 @@ def audit(result: str, root=".") -> dict:
 
     jobs, seen_rec, seen_path = [], set(), set(starts)
     fed: dict[str, dict] = {}  # group -> {file name: sha256}
-    other_sources: dict[str, str] = {}  # raw_data files that are not group files (twin truth, index)
+    other_sources: dict[str, str] = {}  # source files that are not recordings (index, reference values)
     missing, stale = [], []
     todo = deque(starts)
     if not starts:
@@ -98,7 +98,9 @@ def audit(result: str, root=".") -> dict:
             go = group_of(q)
             if go:
                 fed.setdefault(go[0], {})[go[1]] = e["sha256"]
-            elif q.startswith("raw_data/"):
+            elif not q.startswith("results/"):
+                # Only results/ is derived; anything else (raw_data/index.csv, reference/*.yaml) is a
+                # source: a leaf, already checked against its recorded hash above.
                 other_sources[q] = e["sha256"]
             elif q not in seen_path:
                 seen_path.add(q)
