@@ -13,7 +13,7 @@ checkpoint twin_acquire:
     conda:
         "../envs/esnap.yaml"
     params:
-        groups=lambda wc: PLAN[PLAN.shard == wc.shard].to_dict("records"),
+        groups=lambda wc: select(shard=wc.shard).to_dict("records"),
         raw=RAW,
         seed=config["seed"],
         dt=config["twin"]["dt"],
@@ -67,7 +67,7 @@ rule twin_phenomena:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        groups=PLAN[PLAN.evidence_set.isin(PHENOMENA_SETS)][
+        groups=select(evidence_set=PHENOMENA_SETS)[
             ["group_id", "evidence_set", "category", "session"]
         ].to_dict("records"),
     script:

@@ -7,8 +7,8 @@ CHAR = "results/characterize"
 
 
 CAL = dict(evidence_set="servo_calibration")
-CAL_GROUPS = sorted(PLAN[PLAN.evidence_set == "servo_calibration"].group_id)
-HELD_GROUPS = sorted(PLAN[PLAN.evidence_set == "held_base"].group_id)
+CAL_GROUPS = sorted(select(**CAL).group_id)
+HELD_GROUPS = sorted(select(evidence_set="held_base").group_id)
 SNAP_GROUPS = dict(evidence_set="dynamics", category="characterisation", role="train")
 TRIALS = ("characterize/trials", "characterize/mocap", "characterize/load", "rawformat")
 
@@ -81,7 +81,7 @@ rule characterize_release:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        groups=PLAN[PLAN.evidence_set == "release_mode"][
+        groups=select(evidence_set="release_mode")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
     script:
@@ -104,7 +104,7 @@ rule characterize_attachment:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        groups=PLAN[PLAN.evidence_set == "attachment"][
+        groups=select(evidence_set="attachment")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
     script:
@@ -128,11 +128,9 @@ rule characterize_snap:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        groups=PLAN[
-            (PLAN.evidence_set == "dynamics")
-            & (PLAN.category == "characterisation")
-            & (PLAN.role == "train")
-        ][["group_id", "category", "session"]].to_dict("records"),
+        groups=select(**SNAP_GROUPS)[["group_id", "category", "session"]].to_dict(
+            "records"
+        ),
     script:
         "../workflow_scripts/characterize_snap.py"
 
@@ -151,7 +149,7 @@ rule characterize_delay_sweep:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        groups=PLAN[PLAN.evidence_set == "delay_sweep"][
+        groups=select(evidence_set="delay_sweep")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
     script:

@@ -47,16 +47,22 @@ def raw_index():
     return f"{RAW}/index.csv"
 
 
+def select(**where):
+    """Plan rows matching `where` (plan columns, a value or a list of values)."""
+    sel = PLAN
+    for col, val in where.items():
+        sel = sel[sel[col].isin(val if isinstance(val, (list, tuple)) else [val])]
+    return sel
+
+
 def raw_of(**where):
-    """Input function: the recordings of the groups matching `where` (plan columns, a value or a
-    list), e.g. raw_of(evidence_set="dynamics", role="train", category="characterisation").
+    """Input function: the recordings of the groups matching `where`, e.g.
+    raw_of(evidence_set="dynamics", role="train", category="characterisation").
     Only those groups' files become inputs, so the DAG shows exactly which groups a fit saw.
     """
 
     def files(wildcards):
-        sel = PLAN
-        for col, val in where.items():
-            sel = sel[sel[col].isin(val if isinstance(val, (list, tuple)) else [val])]
+        sel = select(**where)
         if TWIN:
             for s in sel.shard.unique():
                 checkpoints.twin_acquire.get(shard=s)
@@ -68,7 +74,5 @@ def raw_of(**where):
 def validated(**where):
     """The validation records of the shards holding the groups matching `where`: a rule that reads
     recordings lists these too, so it runs only on recordings that passed validation."""
-    sel = PLAN
-    for col, val in where.items():
-        sel = sel[sel[col].isin(val if isinstance(val, (list, tuple)) else [val])]
-    return expand("results/raw/shards/{shard}.json", shard=sorted(sel.shard.unique()))
+    shards = sorted(select(**where).shard.unique())
+    return expand("results/raw/shards/{shard}.json", shard=shards)

@@ -87,7 +87,7 @@ rule split:
     conda:
         "../envs/esnap.yaml"
     params:
-        split=PLAN[PLAN.evidence_set == "dynamics"][
+        split=select(evidence_set="dynamics")[
             ["group_id", "category", "session", "role"]
         ].to_dict("records"),
         seed=config["seed"],
