@@ -26,6 +26,7 @@ if config["raw_data"]["source"] == "twin":
 
 include: "rules/data.smk"
 include: "rules/characterize.smk"
+include: "rules/dynamics.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -39,4 +40,5 @@ rule all:
         "results/lineage/separation.json",
         "results/lineage/prov.json",
         "results/characterize/claims.csv",
+        "results/dynamics/claims.csv",
         TWIN_REPORTS,

@@ -1,0 +1,137 @@
+"""Training of Eq. 3 on 25-step open-loop rollouts (Eq. 4), paper IV-A.
+
+Loss: normalised MSE of the rolled-out states, step weights proportional to h^-1/2 (h = 1..25),
+window factors 5 (snap) and 3 (fast motion). Early stopping and model selection use the
+validation windows only; the sealed windows never come near this module.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import torch
+
+from .model import HISTORY, HORIZON, LOOKAHEAD, TIP, Dynamics, norm_stats
+
+SNAP_FACTOR, FAST_FACTOR = 5.0, 3.0
+
+
+def step_weights(horizon: int = HORIZON) -> torch.Tensor:
+    """w_h proportional to h^-1/2, mean 1, so the loss stays on the scale of a per-step MSE."""
+    w = torch.arange(1, horizon + 1, dtype=torch.float32) ** -0.5
+    return w / w.mean()
+
+
+def window_factors(snap: np.ndarray, fast: np.ndarray) -> np.ndarray:
+    """5 on snap windows, 3 on fast ones (windows.py makes them exclusive), 1 otherwise."""
+    return np.where(snap, SNAP_FACTOR, np.where(fast, FAST_FACTOR, 1.0)).astype(np.float32)
+
+
+def group_start(group: np.ndarray) -> np.ndarray:
+    """Row index of each row's group start: the history's first velocity stays inside its group."""
+    starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+    return starts[np.searchsorted(starts, np.arange(len(group)), side="right") - 1]
+
+
+def batch(W: dict, anchors: np.ndarray, horizon: int = HORIZON):
+    """Tensors of a rollout from anchors t: xs x_{t-20..t} (B, 21, 21), us u_{t-19..t+H+4},
+    targets x_{t+1..t+H}. The frame before the history repeats x_{t-19} at a group's first anchor."""
+    a = np.asarray(anchors)[:, None]
+    g0 = W["_start"][a[:, 0]][:, None]
+    xi = np.maximum(a + np.arange(-HISTORY, 1), g0)
+    ui = a + np.arange(-HISTORY + 1, horizon + LOOKAHEAD)
+    ti = a + np.arange(1, horizon + 1)
+    X, U = W["X"], W["U"]
+    return torch.from_numpy(X[xi]), torch.from_numpy(U[ui]), torch.from_numpy(X[ti])
+
+
+def prepare(W: dict) -> dict:
+    W = dict(W)
+    W["_start"] = group_start(W["group"])
+    W["factor"] = window_factors(W["snap"], W["fast"])
+    return W
+
+
+def rollout_loss(model: Dynamics, W: dict, idx: np.ndarray, wh: torch.Tensor) -> torch.Tensor:
+    xs, us, y = batch(W, W["anchors"][idx])
+    pred = model.rollout(xs, us, HORIZON)
+    e = ((pred - y) / model.x_sd) ** 2  # normalised squared error (B, H, 21)
+    f = torch.from_numpy(W["factor"][idx])
+    per = (e.mean(-1) * wh).mean(-1)  # (B,)
+    return (per * f).sum() / f.sum()
+
+
+@torch.no_grad()
+def evaluate_loss(model, W, idx, wh, bs=1024):
+    """Weighted loss and mean tip error at h = 25 (mm) over fixed validation windows."""
+    num = den = tip = 0.0
+    for i in range(0, len(idx), bs):
+        j = idx[i:i + bs]
+        xs, us, y = batch(W, W["anchors"][j])
+        pred = model.rollout(xs, us, HORIZON)
+        e = ((pred - y) / model.x_sd) ** 2
+        f = torch.from_numpy(W["factor"][j])
+        num += float(((e.mean(-1) * wh).mean(-1) * f).sum())
+        den += float(f.sum())
+        tip += float((pred[:, -1, TIP] - y[:, -1, TIP]).norm(dim=-1).sum()) * 1e3
+    return num / den, tip / len(idx)
+
+
+def seed_all(seed: int) -> None:
+    torch.manual_seed(seed)
+    torch.use_deterministic_algorithms(True)
+
+
+def train(
+    Wtr: dict,
+    Wva: dict,
+    seed: int,
+    epochs: int = 30,
+    windows_per_epoch: int = 20000,
+    val_windows: int = 4000,
+    batch_size: int = 256,
+    lr: float = 2e-3,
+    patience: int = 5,
+    log=print,
+) -> tuple[Dynamics, list[dict]]:
+    """Fit one seed. Returns the model of the best validation epoch and the learning curve."""
+    seed_all(seed)
+    rng = np.random.default_rng(seed)
+    Wtr, Wva = prepare(Wtr), prepare(Wva)
+    model = Dynamics(norm_stats(Wtr["X"], Wtr["U"], Wtr["group"]))  # training split only
+    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
+    wh = step_weights()
+    # The same validation windows for every seed and epoch (seeded apart from the model seed).
+    nva = len(Wva["anchors"])
+    val_idx = np.sort(np.random.default_rng(0).choice(nva, min(val_windows, nva), replace=False))
+    best, best_state, bad, curve = np.inf, None, 0, []
+    t0 = time.perf_counter()
+    for ep in range(1, epochs + 1):
+        model.train()
+        idx = rng.permutation(len(Wtr["anchors"]))[:windows_per_epoch]
+        tot = 0.0
+        for i in range(0, len(idx), batch_size):
+            loss = rollout_loss(model, Wtr, idx[i:i + batch_size], wh)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+            opt.step()
+            tot += float(loss.detach()) * len(idx[i:i + batch_size])
+        sched.step()
+        model.eval()
+        vl, vtip = evaluate_loss(model, Wva, val_idx, wh)
+        row = dict(epoch=ep, train_loss=tot / len(idx), val_loss=vl, val_tip_mm_h25=vtip,
+                   seconds=time.perf_counter() - t0)
+        curve.append(row)
+        log(row)
+        if vl < best:
+            best, bad = vl, 0
+            best_state = {k: v.clone() for k, v in model.state_dict().items()}
+        else:
+            bad += 1
+            if bad >= patience:
+                break
+    model.load_state_dict(best_state)
+    return model.eval(), curve

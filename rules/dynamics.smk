@@ -1,0 +1,186 @@
+# Dynamics model (paper IV-A; DESIGN section 4, step 5): the GRU ensemble of Eq. 3-4, the
+# persistence baseline, validation errors, one sealed evaluation, the delay-sweep gate, the hold
+# model, Fig. 4 and results/dynamics/claims.csv. Training and model selection see the train and
+# validation windows only; windows_sealed.npz reaches dynamics_sealed_eval alone, after selection.
+
+DYN = "results/dynamics"
+DCFG = config["dynamics"]
+DSEEDS = DCFG["seeds"]
+DMODELS = expand(f"{DYN}/models/seed{{seed}}.pt", seed=DSEEDS)
+DVALID = expand(f"{DYN}/validation/seed{{seed}}.json", seed=DSEEDS)
+DYN_CODE = (
+    "dynamics/model",
+    "dynamics/train",
+    "dynamics/evaluate",
+)  # evaluate imports train
+SWEEP = dict(evidence_set="delay_sweep")
+HOLD = dict(evidence_set="dynamics", role="train")
+SWEEP_SHARDS = sorted(PLAN[PLAN.evidence_set == "delay_sweep"].shard.unique())
+HOLD_GROUPS = sorted(
+    PLAN[(PLAN.evidence_set == "dynamics") & (PLAN.role == "train")].group_id
+)
+
+
+wildcard_constraints:
+    seed=r"\d+",
+
+
+rule dynamics_train:
+    """Eq. 3-4 for one seed: 25-step open-loop rollouts; early stopping and selection on validation."""
+    input:
+        train="results/splits/windows_train.npz",
+        validation="results/splits/windows_validation.npz",
+        code=code("dynamics/model", "dynamics/train"),
+    output:
+        model=f"{DYN}/models/seed{{seed}}.pt",
+        curve=f"{DYN}/models/seed{{seed}}_curve.csv",
+    log:
+        "logs/dynamics/train_seed{seed}.log",
+    benchmark:
+        "benchmarks/dynamics/train_seed{seed}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: DCFG["threads"]
+    params:
+        seed=lambda wc: int(wc.seed),
+        epochs=BUDGET["dynamics"]["epochs"],
+        windows_per_epoch=BUDGET["dynamics"]["windows_per_epoch"],
+        lr=DCFG["lr"],
+        batch_size=DCFG["batch_size"],
+        patience=DCFG["patience"],
+        val_windows=DCFG["val_windows"],
+    script:
+        "../workflow_scripts/dynamics_train.py"
+
+
+rule dynamics_persistence:
+    """Persistence baseline x_hat_{t+h} = x_t on the validation windows, h = 1..35."""
+    input:
+        validation="results/splits/windows_validation.npz",
+        code=code(*DYN_CODE),
+    output:
+        f"{DYN}/validation/persistence.json",
+    log:
+        "logs/dynamics/persistence.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/dynamics_persistence.py"
+
+
+rule dynamics_validate:
+    """Validation tip error over h = 1..35 of one selected seed; carried-state vs re-encoded gap."""
+    input:
+        model=f"{DYN}/models/seed{{seed}}.pt",
+        validation="results/splits/windows_validation.npz",
+        code=code(*DYN_CODE),
+    output:
+        f"{DYN}/validation/seed{{seed}}.json",
+    log:
+        "logs/dynamics/validate_seed{seed}.log",
+    conda:
+        "../envs/esnap.yaml"
+    threads: DCFG["threads"]
+    script:
+        "../workflow_scripts/dynamics_validate.py"
+
+
+rule dynamics_sealed_eval:
+    """The single sealed evaluation: every selected seed and persistence, once, on all sealed windows.
+    Listed after the validation results so that it runs only after model selection."""
+    input:
+        models=DMODELS,
+        selected=DVALID,
+        sealed="results/splits/windows_sealed.npz",
+        code=code(*DYN_CODE),
+    output:
+        f"{DYN}/sealed/eval.json",
+    log:
+        "logs/dynamics/sealed_eval.log",
+    conda:
+        "../envs/esnap.yaml"
+    threads: DCFG["threads"]
+    params:
+        seeds=DSEEDS,
+    script:
+        "../workflow_scripts/dynamics_sealed_eval.py"
+
+
+rule dynamics_gate:
+    """Measured vs predicted peak tip speed and travel over the excluded delay sweep, per seed."""
+    input:
+        models=DMODELS,
+        shards=expand("results/data/50hz/{shard}.parquet", shard=SWEEP_SHARDS),
+        metas=lambda wc: [f for f in raw_of(**SWEEP)(wc) if f.endswith("meta.json")],
+        code=code("dynamics/gate", "dynamics/hold", "dynamics/data", "dynamics/model"),
+    output:
+        f"{DYN}/gate.json",
+    log:
+        "logs/dynamics/gate.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        seeds=DSEEDS,
+    script:
+        "../workflow_scripts/dynamics_gate.py"
+
+
+rule dynamics_hold:
+    """Hold bank of the training-split dynamics groups; leave-one-session-out hold errors."""
+    input:
+        shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
+        metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
+        code=code("dynamics/hold", "dynamics/data", "dynamics/model"),
+    output:
+        bank=f"{DYN}/hold_bank.npz",
+        summary=f"{DYN}/hold.json",
+    log:
+        "logs/dynamics/hold.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        groups=HOLD_GROUPS,
+    script:
+        "../workflow_scripts/dynamics_hold.py"
+
+
+rule table_dynamics_claims:
+    """Every number of section IV-A beside the paper's value."""
+    input:
+        persistence=f"{DYN}/validation/persistence.json",
+        validation=DVALID,
+        sealed=f"{DYN}/sealed/eval.json",
+        gate=f"{DYN}/gate.json",
+        hold=f"{DYN}/hold.json",
+        reference="reference/paper_values.yaml",
+        code=code("dynamics/claims", "characterize/claims", "reference"),
+    output:
+        f"{DYN}/claims.csv",
+    log:
+        "logs/dynamics/claims.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/dynamics_claims.py"
+
+
+rule fig_gates:
+    """Fig. 4: validation tip error over the horizon; peak speed and travel over the delay sweep."""
+    input:
+        persistence=f"{DYN}/validation/persistence.json",
+        validation=DVALID,
+        gate=f"{DYN}/gate.json",
+        code=code("figures/gates", "figures/style"),
+    output:
+        pdf="results/figs/fig4_gates.pdf",
+        png=report(
+            "results/figs/fig4_gates.png",
+            caption="../report/fig4_gates.rst",
+            category="Dynamics model",
+        ),
+    log:
+        "logs/fig_gates.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/fig_gates.py"

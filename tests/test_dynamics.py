@@ -1,0 +1,193 @@
+"""Dynamics model (issue 5): known answers for Eq. 3-4, the loss, the hold model, the gate, and a tiny
+training run. No timing asserts; the whole file runs in well under a minute."""
+
+import numpy as np
+import pandas as pd
+import pytest
+import torch
+
+from embodied_snap.dynamics import evaluate, gate, hold
+from embodied_snap.dynamics import train as T
+from embodied_snap.dynamics.model import HORIZON, Dynamics, f_cv, n_params, norm_stats
+from embodied_snap.dynamics.rollout import Ensemble
+from embodied_snap.dynamics import model as M
+from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
+from embodied_snap.windows import make_windows
+
+torch.set_num_threads(1)
+
+
+def synthetic_frames(n_groups=6, n=140, seed=0):
+    """Servos lag their step goals (first order); bodies and axis follow the servo positions
+    through a fixed linear map with a little sway: learnable, but not constant velocity."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(0, 2e-5, (9, 12))
+    out = []
+    for g in range(n_groups):
+        goal = np.repeat(rng.uniform(0, 3000, (n // 20 + 1, 9)), 20, 0)[:n]
+        pos = np.zeros((n, 9))
+        for k in range(1, n):
+            pos[k] = pos[k - 1] + 0.3 * (goal[k - 1] - pos[k - 1])
+        body = pos @ A + 0.01 * np.sin(np.arange(n) / 5)[:, None]
+        f = pd.DataFrame(np.c_[body, pos, goal], columns=STATE_COLUMNS + COMMAND_COLUMNS).astype(np.float32)
+        f.insert(0, "t", np.arange(n) * 0.02)
+        f.insert(0, "group_id", f"g{g}")
+        out.append(f)
+    return pd.concat(out, ignore_index=True)
+
+
+@pytest.fixture(scope="module")
+def windows():
+    f = synthetic_frames()
+    tr = make_windows(f[f.group_id < "g4"], fast_speed_mps=0.0)
+    va = make_windows(f[f.group_id >= "g4"])
+    return tr, va
+
+
+def test_gru_parameter_count():
+    m = Dynamics(norm_stats(np.ones((5, 21), np.float32), np.ones((5, 9), np.float32), np.zeros(5)))
+    H, n_in = 96, 2 * 21 + 6 * 9
+    per_layer = lambda i: 3 * H * (i + H) + 2 * 3 * H  # noqa: E731  W_ih, W_hh, two biases
+    assert n_params(m.gru) == per_layer(n_in) + per_layer(H) == 111_744
+    assert n_params(m) == 111_744 + 21 * H + 21
+
+
+def test_cv_prior_exact_on_constant_velocity():
+    """At initialisation the residual is zero, so Eq. 4 extrapolates linear motion exactly."""
+    rng = np.random.default_rng(1)
+    stats = norm_stats(rng.normal(size=(50, 21)).astype(np.float32), rng.normal(size=(50, 9)).astype(np.float32),
+                       np.zeros(50))
+    m = Dynamics(stats)
+    x0, v = torch.randn(4, 1, 21), torch.randn(4, 1, 21) * 0.01
+    k = torch.arange(0, 21 + HORIZON, dtype=torch.float32)[None, :, None]
+    xs = x0 + v * k  # x_{t-20} .. x_{t+25}
+    us = torch.randn(4, 20 + HORIZON + 4, 9)
+    pred = m.rollout(xs[:, :21], us, HORIZON)
+    torch.testing.assert_close(pred, xs[:, 21:], atol=1e-5, rtol=0)
+    torch.testing.assert_close(f_cv(torch.tensor(3.0), torch.tensor(1.0)), torch.tensor(5.0))
+
+
+def test_loss_weights():
+    w = T.step_weights()
+    assert len(w) == 25 and float(w.mean()) == pytest.approx(1.0)
+    assert float(w[0] / w[3]) == pytest.approx(2.0)  # h^-1/2: h=1 vs h=4
+    f = T.window_factors(np.array([True, False, False]), np.array([False, True, False]))
+    assert f.tolist() == [5.0, 3.0, 1.0]
+
+
+def test_hold_model_synthetic_neighbours():
+    bq = np.array([[0.0, 0, 0, 0], [0.3, 0, 0, 0], [3.0, 0, 0, 0]])
+    bx = np.array([[0.0], [1.0], [10.0]])
+    # Exactly on a hold: its weight is 1/0.01 = 100 against 1/0.3; the far one is not among k=2.
+    x, c = hold.predict(bq, bx, np.array([[0.0, 0, 0, 0]]), k=2)
+    assert x[0, 0] == pytest.approx((100 * 0 + (1 / 0.3) * 1) / (100 + 1 / 0.3))
+    assert c[0] == pytest.approx(0.5 + 0.5 * np.exp(-((0.15 / 0.3) ** 2)))
+    # Midway: equal weights, mean distance 0.15.
+    x, _ = hold.predict(bq, bx, np.array([[0.15, 0, 0, 0]]), k=2)
+    assert x[0, 0] == pytest.approx(0.5)
+    # The paper's scale: 1500 ticks of rho1 is distance 1.
+    assert hold.SCALE.tolist() == [1500, 1500, 1500, 1000]
+    assert hold.axis_deg(np.array([[1.0, 0, 0]]), np.array([[0.0, 1, 0]]))[0] == pytest.approx(90)
+
+
+def test_hold_bank_and_loso():
+    f = synthetic_frames(n_groups=6)
+    metas = {f"g{g}": dict(session=f"s{g % 3}", labels=dict(t_s1=1.5),
+                           program=dict(rho1=2500 + 100 * g, rho2=2500, rho3=2500, s3=0)) for g in range(6)}
+    B = hold.bank(f, metas)
+    assert B["x"].shape == (6, 21, 21) and B["u"].shape == (6, 20, 9)
+    i = hold.release_row(np.arange(140) * 0.02, 1.5)
+    np.testing.assert_array_equal(B["x"][0, -1], f[STATE_COLUMNS].to_numpy(np.float32)[i])
+    r = hold.leave_one_session_out(B)
+    assert r["n_holds"] == 6 and r["n_sessions"] == 3 and r["tip_mm_median"] >= 0
+
+
+def test_speed_travel_known_answer():
+    tip = np.zeros((26, 3))
+    tip[:, 0] = np.arange(26) * 0.01  # 1 cm per 20 ms step = 0.5 m/s
+    v, d = gate.speed_travel(tip)
+    assert v == pytest.approx(0.5) and d == pytest.approx(0.25)
+
+
+def test_persistence_and_eligible(windows):
+    tr, _ = windows
+    idx = evaluate.eligible(tr)
+    assert len(tr["anchors"]) == 4 * (140 - 48) and len(idx) == 4 * (140 - 58)
+    e = evaluate.persistence_tip_mm(tr, idx)
+    assert e.shape == (len(idx), 35) and (e[:, 0] >= 0).all()
+
+
+@pytest.fixture(scope="module")
+def trained(windows):
+    tr, va = windows
+    model, curve = T.train(tr, va, seed=0, epochs=4, windows_per_epoch=256, val_windows=128,
+                           batch_size=64, lr=3e-3, patience=10, log=lambda r: None)
+    return model, curve
+
+
+def test_tiny_training_reduces_loss(windows, trained):
+    tr, va = windows
+    model, curve = trained
+    W = T.prepare(va)
+    idx = np.arange(128)
+    T.seed_all(0)
+    prior = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]))  # zero residual = f_cv alone
+    l0, _ = T.evaluate_loss(prior, W, idx, T.step_weights())
+    l1, _ = T.evaluate_loss(model, W, idx, T.step_weights())
+    assert l1 < 0.5 * l0
+    assert [r["epoch"] for r in curve] == [1, 2, 3, 4]
+
+
+def test_training_is_deterministic(windows, trained):
+    tr, va = windows
+    m2, _ = T.train(tr, va, seed=0, epochs=4, windows_per_epoch=256, val_windows=128,
+                    batch_size=64, lr=3e-3, patience=10, log=lambda r: None)
+    for a, b in zip(trained[0].state_dict().values(), m2.state_dict().values()):
+        torch.testing.assert_close(a, b, atol=0, rtol=0)
+
+
+def test_carried_state_vs_reencoded_window(windows, trained):
+    """Eq. 4 literally re-encodes x_{t+h-19..t+h}; the carried state also remembers older frames.
+    Step 1 is identical; afterwards the gap must stay well below the model's own error."""
+    _, va = windows
+    model, _ = trained
+    W = T.prepare(va)
+    xs, us, y = T.batch(W, W["anchors"][:64])
+    with torch.inference_mode():
+        a = model.rollout(xs, us, HORIZON, carry=True)
+        b = model.rollout(xs, us, HORIZON, carry=False)
+    torch.testing.assert_close(a[:, 0], b[:, 0], atol=1e-5, rtol=1e-5)
+    gap = (a[..., M.TIP] - b[..., M.TIP]).norm(dim=-1).mean()
+    err = (a[..., M.TIP] - y[..., M.TIP]).norm(dim=-1).mean()
+    assert float(gap) < 0.5 * float(err) + 1e-4
+
+
+def test_ensemble_rollout_shapes(tmp_path, windows, trained):
+    _, va = windows
+    paths = []
+    for s in range(3):
+        p = tmp_path / f"seed{s}.pt"
+        M.save(trained[0], p)
+        paths.append(p)
+    ens = Ensemble(paths, device="cpu")
+    W = T.prepare(va)
+    xs, us, _ = T.batch(W, W["anchors"][:6])
+    out = ens.rollout(xs.reshape(2, 3, 21, 21), us.reshape(2, 3, *us.shape[1:]))
+    assert out["tip"].shape == (3, 2, 3, 26, 3) and out["disagreement"].shape == (2, 3, 26)
+    np.testing.assert_allclose(out["disagreement"], 0, atol=1e-6)  # identical members agree
+
+
+def test_stacked_ensemble_equals_each_model(windows, trained):
+    """The stacked, batched-over-seeds rollout of rollout.py is Dynamics.rollout(carry=True)."""
+    tr, va = windows
+    T.seed_all(1)
+    other = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]))
+    torch.nn.init.normal_(other.head.weight, std=0.1)  # a second, different member
+    ens = Ensemble(models=[trained[0], other], device="cpu")
+    W = T.prepare(va)
+    xs, us, _ = T.batch(W, W["anchors"][:32])
+    out = ens.rollout(xs, us)
+    with torch.inference_mode():
+        for s, m in enumerate(ens.models):
+            ref = m.rollout(xs, us, HORIZON)[..., M.TIP].numpy()
+            np.testing.assert_allclose(out["tip"][s, :, 1:], ref, atol=2e-5, rtol=0)

@@ -1,0 +1,18 @@
+"""Delay-sweep gate: measured vs predicted peak tip speed and travel, per seed."""
+
+import sys
+
+import torch
+
+from embodied_snap.dynamics import data, gate
+from embodied_snap.dynamics.model import load
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    torch.set_num_threads(1)
+    models = {str(s): load(p) for s, p in zip(snakemake.params.seeds, snakemake.input.models)}
+    out = gate.sweep(models, data.frames(snakemake.input.shards), data.metas(snakemake.input.metas))
+    print({k: v for k, v in out.items() if k not in ("trials", "per_tau")}, file=sys.stderr)
+    write_json(out, snakemake.output[0])

@@ -1,0 +1,16 @@
+"""Hold bank of the training-split dynamics groups and its leave-one-session-out errors."""
+
+import sys
+
+from embodied_snap.dynamics import data, hold
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.windows import save_windows
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    B = hold.bank(data.frames(snakemake.input.shards, snakemake.params.groups), data.metas(snakemake.input.metas))
+    out = hold.leave_one_session_out(B)
+    print(out, file=sys.stderr)
+    save_windows(snakemake.output.bank, B)  # the same byte-stable .npz writer as the windows
+    write_json(out, snakemake.output.summary)

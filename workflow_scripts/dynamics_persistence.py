@@ -1,0 +1,15 @@
+"""Persistence baseline on the validation windows (h = 1..35)."""
+
+import sys
+
+from embodied_snap.dynamics import evaluate as E
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.windows import load_windows
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    W = load_windows(snakemake.input.validation)
+    out = E.summary(E.persistence_tip_mm(W, E.eligible(W)))
+    print(out["at_s_mm"], file=sys.stderr)
+    write_json(out, snakemake.output[0])

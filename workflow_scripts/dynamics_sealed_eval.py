@@ -1,0 +1,23 @@
+"""The single sealed evaluation: each selected seed and persistence, once, on every sealed window."""
+
+import sys
+
+import torch
+
+from embodied_snap.dynamics import evaluate as E
+from embodied_snap.dynamics.model import load
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.windows import load_windows
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    torch.set_num_threads(snakemake.threads)
+    W = load_windows(snakemake.input.sealed)
+    idx = E.eligible(W)
+    out = {"n_windows_all": int(len(W["anchors"])), "n_groups": int(len(W["group_ids"])),
+           "persistence": E.summary(E.persistence_tip_mm(W, idx)), "seeds": {}}
+    for seed, path in zip(snakemake.params.seeds, snakemake.input.models):
+        out["seeds"][str(seed)] = E.summary(E.model_tip_mm(load(path), W, idx))
+        print(seed, out["seeds"][str(seed)]["at_s_mm"], file=sys.stderr)
+    write_json(out, snakemake.output[0])

@@ -1,0 +1,22 @@
+"""Validation tip error of one selected seed; the gap between carried-state and re-encoded rollouts."""
+
+import sys
+
+import torch
+
+from embodied_snap.dynamics import evaluate as E
+from embodied_snap.dynamics.model import load
+from embodied_snap.provenance import tracked
+from embodied_snap.rawformat import write_json
+from embodied_snap.windows import load_windows
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    torch.set_num_threads(snakemake.threads)
+    model = load(snakemake.input.model)
+    W = load_windows(snakemake.input.validation)
+    idx = E.eligible(W)
+    out = E.summary(E.model_tip_mm(model, W, idx))
+    out["carry_gap"] = E.carry_gap(model, W, idx)
+    print(out["at_s_mm"], out["carry_gap"], file=sys.stderr)
+    write_json(out, snakemake.output[0])

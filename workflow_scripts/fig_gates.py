@@ -1,0 +1,13 @@
+"""Figure 4: hardware gates for controller development."""
+
+import json
+import sys
+
+from embodied_snap.figures.gates import plot_gates
+from embodied_snap.provenance import tracked
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    i = snakemake.input
+    plot_gates(json.load(open(i.persistence)), [json.load(open(p)) for p in i.validation],
+               json.load(open(i.gate)), snakemake.output.pdf, snakemake.output.png)
