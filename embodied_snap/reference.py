@@ -41,3 +41,22 @@ def twin_comparison(phenomena: dict, path: str | Path = REFERENCE) -> list[dict]
             )
         )
     return rows
+
+
+def fmt(v) -> str:
+    """A number with 4 significant digits, a range as [lo, hi], NaN as empty."""
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(fmt(x) for x in v) + "]"
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return ""
+    return f"{v:.4g}" if isinstance(v, float) else str(v)
+
+
+def claim_rows(section: str, ours: dict, path: str | Path = REFERENCE) -> list[dict]:
+    """Rows of a stage's claims.csv: every claim of `section` in the reference file, the paper's value
+    beside ours (claim id -> value)."""
+    return [
+        dict(claim_id=cid, section=r["section"], quantity=r["quantity"], paper=fmt(r["paper"]),
+             ours=fmt(ours[cid]), unit=r["unit"])
+        for cid, r in paper_values(path)[section].items()
+    ]

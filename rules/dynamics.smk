@@ -153,7 +153,7 @@ rule table_dynamics_claims:
         gate=f"{DYN}/gate.json",
         hold=f"{DYN}/hold.json",
         reference="reference/paper_values.yaml",
-        code=code("dynamics/claims", "characterize/claims", "reference"),
+        code=code("dynamics/claims", "reference"),
     output:
         f"{DYN}/claims.csv",
     log:

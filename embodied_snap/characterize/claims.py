@@ -3,9 +3,7 @@ The paper column comes from reference/paper_values.yaml (section `characterize`)
 
 from __future__ import annotations
 
-import math
-
-from ..reference import paper_values
+from ..reference import claim_rows
 
 # claim id -> (fit artifact, how to read our value from it)
 OURS = {
@@ -54,20 +52,6 @@ OURS = {
 }
 
 
-def fmt(v) -> str:
-    """A number with 4 significant digits, a range as [lo, hi], NaN as empty."""
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(fmt(x) for x in v) + "]"
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return ""
-    return f"{v:.4g}" if isinstance(v, float) else str(v)
-
-
 def rows(fits: dict, path=None) -> list[dict]:
-    ref = paper_values(path) if path else paper_values()
-    out = []
-    for cid, r in ref["characterize"].items():
-        fit, get = OURS[cid]
-        out.append(dict(claim_id=cid, section=r["section"], quantity=r["quantity"], paper=fmt(r["paper"]),
-                        ours=fmt(get(fits[fit])), unit=r["unit"]))
-    return out
+    ours = {cid: get(fits[fit]) for cid, (fit, get) in OURS.items()}
+    return claim_rows("characterize", ours, *([path] if path else []))

@@ -3,8 +3,7 @@ The paper column comes from reference/paper_values.yaml (section `dynamics`), ne
 
 from __future__ import annotations
 
-from ..characterize.claims import fmt
-from ..reference import paper_values
+from ..reference import claim_rows
 
 
 def _seed_range(summaries, key="at_s_mm", at=None):
@@ -37,7 +36,4 @@ def _ours(res: dict) -> dict:
 
 
 def rows(res: dict, path=None) -> list[dict]:
-    ref = paper_values(path) if path else paper_values()
-    ours = _ours(res)
-    return [dict(claim_id=cid, section=r["section"], quantity=r["quantity"], paper=fmt(r["paper"]),
-                 ours=fmt(ours[cid]), unit=r["unit"]) for cid, r in ref["dynamics"].items()]
+    return claim_rows("dynamics", _ours(res), *([path] if path else []))

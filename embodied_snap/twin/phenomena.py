@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
+from ..characterize.load import release_start
 from ..characterize.mocap import peak, section_rates, tip_speed
 
 RATED = 3140.0
@@ -24,14 +25,6 @@ CEILING = tuple(RATED / x for x in PAPER_LEVER)  # rad/s, S1..S3
 OPERATING_TAU = (0.45, 0.675)
 # Peaks are taken from slightly before the release starts (the 3-sample smoothing reaches back).
 LEAD_S = 0.05
-
-
-def _release_start(meta: dict) -> float:
-    lab = meta.get("labels", {})
-    for k in ("t_slack", "t_release", "t_s2"):
-        if k in lab:
-            return float(lab[k])
-    return 0.0
 
 
 def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
@@ -44,7 +37,7 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
         p = RF.group_paths(raw_dir, row.group_id)
         meta = RF.read_meta(p["meta"])
         mc = pd.read_parquet(p["mocap"])
-        t, t0 = mc.t.to_numpy(), _release_start(meta) - LEAD_S
+        t, t0 = mc.t.to_numpy(), release_start(meta) - LEAD_S
         v, _ = peak(tip_speed(mc), t, t0)
         rec = dict(group_id=row.group_id, es=row.evidence_set, cat=row.category, v=v, tau=meta["program"].get("tau"), attached=meta["labels"].get("attached"))
         if row.evidence_set == "delay_sweep":
