@@ -15,6 +15,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 
+from .quat import to_matrix
 from .rawformat import SERVO_IDS, TIP_AXIS_LOCAL, group_paths
 from .validate import TRACKED_BODIES, RecordingError
 
@@ -28,19 +29,6 @@ FRAME_COLUMNS = ["group_id", "t", *STATE_COLUMNS, *COMMAND_COLUMNS]
 
 _POS = ("x", "y", "z")
 _QUAT = ("qw", "qx", "qy", "qz")
-
-
-def quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(n,4) unit quaternions (w,x,y,z) -> (n,3,3) rotation matrices (body to lab)."""
-    w, x, y, z = q.T
-    return np.stack(
-        [
-            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-        ],
-        -2,
-    )
 
 
 def _empty_frame() -> pd.DataFrame:
@@ -100,11 +88,11 @@ def resample_group(raw_dir, group_id: str, hz: float = 50.0, max_gap_s: float = 
         return _empty_frame()
 
     poses = {b: _track(mocap, b, tg, max_gap_s, paths["mocap"], group_id) for b in TRACKED_BODIES}
-    p_base, r_base = poses["base"][0], quat_to_matrix(poses["base"][1])
+    p_base, r_base = poses["base"][0], to_matrix(poses["base"][1])
     # R_base^T v for each row: einsum over the lab index j of R[n, j, i].
     to_base = lambda v: np.einsum("nji,nj->ni", r_base, v)  # noqa: E731
     cols = [to_base(poses[b][0] - p_base) for b in ("s1", "s2", "tip")]
-    cols.append(to_base(quat_to_matrix(poses["tip"][1]) @ np.asarray(TIP_AXIS_LOCAL)))
+    cols.append(to_base(to_matrix(poses["tip"][1]) @ np.asarray(TIP_AXIS_LOCAL)))
     # Present positions are sampled measurements: interpolate. A goal is a step command that
     # holds until the next one: zero-order hold of the last goal sent at or before t.
     last = np.clip(np.searchsorted(ts, tg, side="right") - 1, 0, len(ts) - 1)

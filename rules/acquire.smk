@@ -56,7 +56,7 @@ rule twin_phenomena:
     input:
         raw=raw_of(evidence_set=PHENOMENA_SETS),
         valid=validated(evidence_set=PHENOMENA_SETS),
-        code=code("twin/phenomena", "characterize/load", "characterize/mocap"),
+        code=code("twin/phenomena", "characterize/load", "characterize/mocap", "quat"),
     output:
         "results/twin/phenomena.json",
     log:

@@ -10,7 +10,13 @@ CAL = dict(evidence_set="servo_calibration")
 CAL_GROUPS = sorted(select(**CAL).group_id)
 HELD_GROUPS = sorted(select(evidence_set="held_base").group_id)
 SNAP_GROUPS = dict(evidence_set="dynamics", category="characterisation", role="train")
-TRIALS = ("characterize/trials", "characterize/mocap", "characterize/load", "rawformat")
+TRIALS = (
+    "characterize/trials",
+    "characterize/mocap",
+    "quat",
+    "characterize/load",
+    "rawformat",
+)
 
 
 rule characterize_kinematics:
@@ -21,6 +27,7 @@ rule characterize_kinematics:
         code=code(
             "characterize/kinematics",
             "characterize/mocap",
+            "quat",
             "characterize/load",
             "rawformat",
         ),
@@ -166,6 +173,7 @@ rule characterize_heldbase:
             "characterize/heldbase",
             "characterize/servo",
             "characterize/mocap",
+            "quat",
             "characterize/load",
             "rawformat",
         ),

@@ -58,7 +58,7 @@ rule resample_shard:
     input:
         raw=shard_raw,
         valid="results/raw/shards/{shard}.json",
-        code=code("resample", "validate", "rawformat"),
+        code=code("resample", "quat", "validate", "rawformat"),
     output:
         "results/data/50hz/{shard}.parquet",
     log:

@@ -11,26 +11,10 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
+from ..quat import qconj, qmul, qrotate
 
 SECTION_FRAMES = (("base", "s1"), ("s1", "s2"), ("s2", "tip"))
 MAX_GAP_S = 0.1  # dropouts up to this long are bridged, as in the 50 Hz resampling
-
-
-def qmul(a, b):
-    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
-    return np.stack([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2], -1)
-
-
-def qconj(q):
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def qrotate(q, v):
-    """Rotate vector(s) v by unit quaternion(s) q (w, x, y, z)."""
-    qv = np.concatenate([np.zeros(np.shape(v)[:-1] + (1,)), v], -1)
-    return qmul(qmul(q, qv), qconj(q))[..., 1:]
 
 
 def track(mc: pd.DataFrame, body: str, fields=("x", "y", "z")) -> np.ndarray:

@@ -12,44 +12,15 @@ import numpy as np
 import pandas as pd
 
 from ..rawformat import BODIES, MOCAP_HZ, mocap_columns, servo_columns
+from ..quat import from_rotvec as quat_from_rotvec
+from ..quat import qmul
+from ..quat import to_matrix as quat_to_mat
 from . import servo as SV
 
 POS_NOISE_M = 0.0003  # 0.3 mm per axis
 ANG_NOISE_RAD = np.deg2rad(0.15)
 DROPOUT_RATE_HZ = 0.6  # dropout events per body per second
 DROPOUT_LEN = (1, 8)  # samples (<= 33 ms: bridged by the 0.1 s gap rule downstream)
-
-
-def qmul(a, b):
-    w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
-    w2, x2, y2, z2 = np.moveaxis(b, -1, 0)
-    return np.stack(
-        [
-            w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-            w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-            w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        ],
-        -1,
-    )
-
-
-def quat_from_rotvec(v):
-    v = np.asarray(v, float)
-    ang = np.linalg.norm(v, axis=-1, keepdims=True)
-    axis = np.divide(v, ang, out=np.zeros_like(v), where=ang > 0)
-    return np.concatenate([np.cos(ang / 2), axis * np.sin(ang / 2)], -1)
-
-
-def quat_to_mat(q):
-    w, x, y, z = q
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-        ]
-    )
 
 
 def _resample(t_step, x, t_out):

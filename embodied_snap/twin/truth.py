@@ -47,7 +47,7 @@ def session_params(seed: int, session: str) -> dict:
     base = np.asarray(BASE_LAB) + r.normal(0, 0.003, 3)  # the mount is re-measured each session
     tilt = r.normal(0, np.deg2rad(0.6), 3)  # calibration wand: small frame rotation
     tilt[1] = r.uniform(-np.pi, np.pi) * 0.02  # and a little yaw
-    from .mocap import quat_from_rotvec
+    from ..quat import from_rotvec as quat_from_rotvec
 
     q = quat_from_rotvec(tilt)
     return dict(
@@ -89,7 +89,7 @@ def effective_levers(amplitude: float = 2000.0, dt: float = 0.001) -> list[float
     section by section from the true section bends (distal cables traverse the proximal ones)."""
     from . import protocols as P
     from . import sim
-    from .mocap import qmul
+    from ..quat import qmul
 
     L = []
     p = dict(M.NOMINAL)
