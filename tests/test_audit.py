@@ -6,19 +6,10 @@ import time
 from embodied_snap import provenance as pv
 from embodied_snap.audit import audit, compact_ids, format_audit
 
+from lineage_tree import group_files as _group
+from lineage_tree import write as _write
+
 INDEX_HEAD = "group_id,evidence_set,category,session\n"
-
-
-def _write(root, rel, data=b"x"):
-    p = root / rel
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_bytes(data)
-    return rel
-
-
-def _group(root, gid):
-    return [_write(root, f"raw_data/groups/{gid}/{f}", f"{gid}/{f}".encode())
-            for f in ("mocap.parquet", "servo.parquet", "meta.json")]
 
 
 def _tree(root):

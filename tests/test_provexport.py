@@ -7,17 +7,8 @@ from prov.model import ProvDocument
 from embodied_snap import provenance as pv
 from embodied_snap.provexport import NAMESPACES, export, held_out
 
-
-def _write(root, rel, data=b"x"):
-    p = root / rel
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_bytes(data)
-    return rel
-
-
-def _files(root, gid):
-    return [_write(root, f"raw_data/groups/{gid}/{f}", f"{gid}/{f}".encode())
-            for f in ("mocap.parquet", "servo.parquet", "meta.json")]
+from lineage_tree import group_files as _files
+from lineage_tree import write as _write
 
 
 def test_export(tmp_path):

@@ -6,12 +6,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from embodied_snap.quat import to_matrix as quat_to_matrix
 from embodied_snap.rawformat import group_paths, write_parquet
 from embodied_snap.resample import (
     COMMAND_COLUMNS,
     FRAME_COLUMNS,
     STATE_COLUMNS,
-    quat_to_matrix,
     resample_group,
     resample_shard,
 )

@@ -8,6 +8,9 @@ import pytest
 from embodied_snap import provenance as pv
 from embodied_snap.separation import POLICY, check, check_dag, check_records, forbidden, shard_source
 
+from lineage_tree import group_files as _files
+from lineage_tree import write as _write
+
 GROUPS = {  # group -> (evidence set, category, role in the split)
     "dyn_0001": ("dynamics", "free_space", "train"),
     "dyn_0002": ("dynamics", "target", "train"),
@@ -17,18 +20,6 @@ GROUPS = {  # group -> (evidence set, category, role in the split)
 }
 SHARDS = {"dynamics_train-00": ["dyn_0001", "dyn_0002"], "dynamics_validation-00": ["dyn_0003"],
           "dynamics_sealed-00": ["dyn_0004"], "delay_sweep-00": ["dly_0001"]}
-
-
-def _write(root, rel, data=b"x"):
-    p = root / rel
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_bytes(data)
-    return rel
-
-
-def _files(root, gid):
-    return [_write(root, f"raw_data/groups/{gid}/{f}", f"{gid}/{f}".encode())
-            for f in ("mocap.parquet", "servo.parquet", "meta.json")]
 
 
 def _npz(root, role, ids):
