@@ -27,6 +27,7 @@ if config["raw_data"]["source"] == "twin":
 include: "rules/data.smk"
 include: "rules/characterize.smk"
 include: "rules/dynamics.smk"
+include: "rules/policy.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -41,4 +42,5 @@ rule all:
         "results/lineage/prov.json",
         "results/characterize/claims.csv",
         "results/dynamics/claims.csv",
+        "results/policy/claims.csv",
         TWIN_REPORTS,

@@ -82,7 +82,18 @@ POLICY: dict[str, dict] = {
     TWIN_TRUTH: dict(
         readers=("twin_validation",), only=("twin_validation",) + REPORTS, held_out=True,
         rule="only twin_validation reads the simulated rig's ground truth"),
+    # The simulated target sets (files): what may read each, and where their data may flow.
+    "results/policy/targets_selection.parquet": dict(
+        readers=("policy_search", "policy_fixed"),
+        only=("policy_search*", "policy_evaluate*", "policy_fixed*", "policy_summary*") + REPORTS, held_out=False,
+        rule="the 64 selection targets select policies; they never feed the evaluation targets' own use"),
+    "results/policy/targets_evaluation.parquet": dict(
+        readers=("policy_evaluate", "policy_fixed"),
+        only=("policy_evaluate*", "policy_fixed*", "policy_summary*") + REPORTS, held_out=True,
+        rule="the 400 evaluation targets are read only by the final evaluation, after selection"),
 }
+# Sources that are files rather than raw groups: their readers are checked, then the usual walk.
+FILE_SOURCES = tuple(k for k, v in POLICY.items() if "readers" in v)
 # Evidence sets that must never feed any model (exported as held out with validation and sealed).
 HELD_OUT = {k for k, v in POLICY.items() if v["held_out"]}
 WINDOW_ROLES = ("train", "validation", "sealed")
@@ -233,20 +244,23 @@ def dag_violations(nodes: list[dict], groups: dict | None = None) -> tuple[list[
                            f"DESIGN 3: {POLICY[src]['rule']}")
             else:
                 out += _walk(nodes, [i], src, f"{src} group {g} (read by {label(n['rule'], n['wildcards'])})")
-    # The twin's truth: a file, read directly only by the allowed readers, then the usual walk.
-    readers = [i for i, n in enumerate(nodes) if TWIN_TRUTH in n["input"]]
-    allowed = POLICY[TWIN_TRUTH]["readers"]
-    for i in readers:
-        n = nodes[i]
-        if n["rule"] not in allowed:
-            art = n["output"][0] if n["output"] else "(no output)"
-            out.append(f"separation (DAG): {art} (rule {n['rule']}) reads {TWIN_TRUTH}; "
-                       f"DESIGN 3: {POLICY[TWIN_TRUTH]['rule']}")
-    ok = [i for i in readers if nodes[i]["rule"] in allowed]
-    if ok:
-        out += _walk(nodes, ok, TWIN_TRUTH, TWIN_TRUTH)
+    # File sources (the twin's truth, the target sets): read directly only by the allowed readers,
+    # then the usual walk.
+    n_readers = 0
+    for src in FILE_SOURCES:
+        readers = [i for i, n in enumerate(nodes) if src in n["input"]]
+        n_readers += len(readers) if src == TWIN_TRUTH else 0
+        allowed = POLICY[src]["readers"]
+        for i in readers:
+            n = nodes[i]
+            if n["rule"] not in allowed:
+                art = n["output"][0] if n["output"] else "(no output)"
+                out.append(f"separation (DAG): {art} (rule {n['rule']}) reads {src}; DESIGN 3: {POLICY[src]['rule']}")
+        ok = [i for i in readers if nodes[i]["rule"] in allowed]
+        if ok:
+            out += _walk(nodes, ok, src, src)
     return out, dict(dag_jobs=len(nodes), dag_source_shards=len(shards), dag_direct_readers=n_direct,
-                     dag_truth_readers=len(readers))
+                     dag_truth_readers=n_readers)
 
 
 def check_dag(workdir=".", configfiles=None, config_overrides: dict | None = None,
@@ -266,8 +280,8 @@ def _record_violations(root: Path, groups: dict) -> tuple[list[str], dict]:
     out = []
 
     def src_of(g):
-        if g == TWIN_TRUTH:
-            return TWIN_TRUTH
+        if g in FILE_SOURCES:
+            return g
         d = groups.get(g, {})
         # The sealed category is sealed whatever split.csv says (a wrong split is reported apart).
         return "sealed" if d.get("category") == "sealed" else (d.get("role") or "unknown")
@@ -280,8 +294,8 @@ def _record_violations(root: Path, groups: dict) -> tuple[list[str], dict]:
         for e in r.get("inputs", []):
             p = e["path"]
             go = group_of(p)
-            if go or p == TWIN_TRUTH:
-                g = go[0] if go else TWIN_TRUTH
+            if go or p in FILE_SOURCES:
+                g = go[0] if go else p
                 f.setdefault(g, src_of(g))
                 v.setdefault(g, p)
                 continue
@@ -295,8 +309,9 @@ def _record_violations(root: Path, groups: dict) -> tuple[list[str], dict]:
             t |= tainted[prod["_record"]]
         rule, wc = r["rule"], r.get("wildcards", {})
         art = r["outputs"][0]["path"] if r.get("outputs") else key
-        if any(e["path"] == TWIN_TRUTH for e in r.get("inputs", [])):
-            t.add(TWIN_TRUTH)  # a direct read is judged by the readers check below, not again here
+        for src in FILE_SOURCES:
+            if any(e["path"] == src for e in r.get("inputs", [])):
+                t.add(src)  # a direct read is judged by the readers check below, not again here
         by_src: dict[str, list[str]] = {}
         for g, s in f.items():
             by_src.setdefault(s, []).append(g)
@@ -304,7 +319,7 @@ def _record_violations(root: Path, groups: dict) -> tuple[list[str], dict]:
             if s not in t and forbidden(s, rule, wc):
                 gs = sorted(gs)
                 more = f" (+{len(gs) - 1} more)" if len(gs) > 1 else ""
-                what = gs[0] if s == TWIN_TRUTH else f"{s} group {gs[0]}{more}"
+                what = gs[0] if s in FILE_SOURCES else f"{s} group {gs[0]}{more}"
                 out.append(f"separation (records): {art} (rule {label(rule, wc)}) was fed by {what} "
                            f"through {v[gs[0]]}; DESIGN 3: {POLICY[s]['rule']}")
                 t.add(s)
@@ -313,13 +328,13 @@ def _record_violations(root: Path, groups: dict) -> tuple[list[str], dict]:
     for key in sorted(recs):
         if not is_bookkeeping(recs[key]["rule"]):
             visit(key)
-    # Nothing but the allowed readers reads the twin's truth, bookkeeping included.
+    # Nothing but the allowed readers reads a file source, bookkeeping included.
     for key, r in sorted(recs.items()):
-        if r["rule"] not in POLICY[TWIN_TRUTH]["readers"] and any(
-                e["path"] == TWIN_TRUTH for e in r.get("inputs", [])):
-            art = r["outputs"][0]["path"] if r.get("outputs") else key
-            out.append(f"separation (records): {art} (rule {r['rule']}) read {TWIN_TRUTH}; "
-                       f"DESIGN 3: {POLICY[TWIN_TRUTH]['rule']}")
+        for src in FILE_SOURCES:
+            if r["rule"] not in POLICY[src]["readers"] and any(e["path"] == src for e in r.get("inputs", [])):
+                art = r["outputs"][0]["path"] if r.get("outputs") else key
+                out.append(f"separation (records): {art} (rule {r['rule']}) read {src}; "
+                           f"DESIGN 3: {POLICY[src]['rule']}")
     return out, dict(records=len(recs))
 
 

@@ -107,7 +107,8 @@ rule dynamics_sealed_eval:
 
 
 rule dynamics_gate:
-    """Measured vs predicted peak tip speed and travel over the excluded delay sweep, per seed."""
+    """Measured vs predicted peak tip speed and travel over the excluded delay sweep, per seed,
+    rolled out from each trial's hold through the S2 and S1 releases."""
     input:
         models=DMODELS,
         shards=expand("results/data/50hz/{shard}.parquet", shard=SWEEP_SHARDS),
@@ -121,16 +122,18 @@ rule dynamics_gate:
         "../envs/esnap.yaml"
     params:
         seeds=DSEEDS,
+        after_s1=DCFG["after_s1_s"],
     script:
         "../workflow_scripts/dynamics_gate.py"
 
 
 rule dynamics_hold:
-    """Hold bank of the training-split dynamics groups; leave-one-session-out hold errors."""
+    """Hold bank (pre-S2-release configurations) of the training-split dynamics groups, canonical
+    bearing; leave-one-session-out hold errors."""
     input:
         shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
         metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
-        code=code("dynamics/hold", "dynamics/data", "dynamics/model"),
+        code=code("dynamics/hold", "dynamics/data", "dynamics/model", "bearing"),
     output:
         bank=f"{DYN}/hold_bank.npz",
         summary=f"{DYN}/hold.json",

@@ -7,6 +7,10 @@ rule check_separation:
         split="results/splits/split.csv",
         windows=expand("results/splits/windows_{role}.npz", role=ROLE_SHARDS),
         manifest="results/raw/manifest.json",
+        # the claims tables come after every model, policy and target set: all records exist
+        claims=expand(
+            "results/{stage}/claims.csv", stage=("characterize", "dynamics", "policy")
+        ),
         code=code("separation", "provenance"),
     output:
         "results/lineage/separation.json",

@@ -1,7 +1,13 @@
 # Figures: one job per figure writes results/figs/; `figures` assembles results/figures/ from them,
 # because Snakemake refuses outputs nested in another job's directory output.
 
-FIGURES = ["fig0_data_overview", "fig2_limits", "fig3_snap", "fig4_gates"]
+FIGURES = [
+    "fig0_data_overview",
+    "fig2_limits",
+    "fig3_snap",
+    "fig4_gates",
+    "fig5_benchmark",
+]
 
 
 rule fig_data_overview:

@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 import torch
 
+from embodied_snap import bearing as BR
 from embodied_snap.dynamics import evaluate, gate, hold
 from embodied_snap.dynamics import train as T
 from embodied_snap.dynamics.model import HORIZON, Dynamics, f_cv, n_params, norm_stats
@@ -28,7 +29,7 @@ def synthetic_frames(n_groups=6, n=140, seed=0):
         pos = np.zeros((n, 9))
         for k in range(1, n):
             pos[k] = pos[k - 1] + 0.3 * (goal[k - 1] - pos[k - 1])
-        body = pos @ A + 0.01 * np.sin(np.arange(n) / 5)[:, None]
+        body = pos @ A + 0.01 * np.sin(np.arange(n) / 5)[:, None] + np.tile([0.0, -0.5, 0.0], 4)  # hangs along -y
         f = pd.DataFrame(np.c_[body, pos, goal], columns=STATE_COLUMNS + COMMAND_COLUMNS).astype(np.float32)
         f.insert(0, "t", np.arange(n) * 0.02)
         f.insert(0, "group_id", f"g{g}")
@@ -92,12 +93,27 @@ def test_hold_model_synthetic_neighbours():
 
 def test_hold_bank_and_loso():
     f = synthetic_frames(n_groups=6)
-    metas = {f"g{g}": dict(session=f"s{g % 3}", labels=dict(t_s1=1.5),
-                           program=dict(rho1=2500 + 100 * g, rho2=2500, rho3=2500, s3=0)) for g in range(6)}
+    metas = {f"g{g}": dict(session=f"s{g % 3}", labels=dict(t_s2=1.5),
+                           program=dict(rho1=2500 + 100 * g, rho2=2500, rho3=2500, s3=0, bearing=210.0))
+             for g in range(6)}
     B = hold.bank(f, metas)
-    assert B["x"].shape == (6, 21, 21) and B["u"].shape == (6, 20, 9)
+    assert B["x"].shape == (6, 21, 21)
     i = hold.release_row(np.arange(140) * 0.02, 1.5)
-    np.testing.assert_array_equal(B["x"][0, -1], f[STATE_COLUMNS].to_numpy(np.float32)[i])
+    g0 = f[f.group_id == "g0"]
+    X, U = g0[STATE_COLUMNS].to_numpy(), g0[COMMAND_COLUMNS].to_numpy()
+    # At the canonical bearing nothing rotates; servo positions are kept as offsets from the goals.
+    np.testing.assert_allclose(B["x"][0, -1, :12], X[i, :12], atol=1e-6)
+    np.testing.assert_allclose(B["x"][0, -1, 12:], X[i, 12:] - U[i], atol=1e-4)
+    # start() puts the servo positions back on the given goals and rotates by dphi about n.
+    prm = dict(rho1=[2500.0], rho2=[2500.0], rho3=[2500.0], s3=[0.0], dphi=[0.0])
+    x0, c0 = hold.start(B, prm, U[None, i - 20:i + 1])
+    assert x0.shape == (1, 21, 21) and 0.5 < c0[0] <= 1.0
+    off, _ = hold.predict(B["q"], B["x"], np.array([[2500, 2500, 2500, 0]]) / hold.SCALE)
+    np.testing.assert_allclose(x0[0, -1, 12:], U[i] + off[0, -1, 12:], atol=1e-3)
+    x1, _ = hold.start(B, dict(prm, dphi=[90.0]), U[None, i - 20:i + 1])
+    tip0, tip1 = x0[0, -1, 6:9], x1[0, -1, 6:9]
+    assert np.linalg.norm(tip1) == pytest.approx(np.linalg.norm(tip0), rel=1e-5)
+    assert (BR.bearing_deg(tip1, B["n"]) - BR.bearing_deg(tip0, B["n"])) % 360 == pytest.approx(90, abs=1e-3)
     r = hold.leave_one_session_out(B)
     assert r["n_holds"] == 6 and r["n_sessions"] == 3 and r["tip_mm_median"] >= 0
 

@@ -146,7 +146,8 @@ if LEAK == "sealed_in_train":
 ALL = ["dynamics_train-00", "dynamics_validation-00", "dynamics_sealed-00", "delay_sweep-00"]
 
 rule all:
-    input: "results/dynamics/sealed_eval.json", "results/dynamics/gate.json", "results/figures/fig4.png"
+    input: "results/dynamics/sealed_eval.json", "results/dynamics/gate.json", "results/figures/fig4.png",
+           "results/policy/eval/shared_seed0.parquet"
 
 rule twin_acquire:
     output: "raw_data/shards/{shard}.done"
@@ -195,6 +196,20 @@ rule twin_validation:
     input: "raw_data/twin_truth.json"
     output: "results/twin/validation.json"
 
+rule policy_targets:
+    output: expand("results/policy/targets_{s}.parquet", s=("training", "selection", "evaluation"))
+
+rule policy_search:
+    input:
+        "results/dynamics/model.pt", "results/policy/targets_training.parquet",
+        "results/policy/targets_selection.parquet",
+        ["results/policy/targets_evaluation.parquet"] if LEAK == "evaluation_targets" else [],
+    output: "results/policy/runs/shared_seed0.json"
+
+rule policy_evaluate:
+    input: "results/policy/runs/shared_seed0.json", "results/policy/targets_evaluation.parquet"
+    output: "results/policy/eval/shared_seed0.parquet"
+
 rule fig_gate:
     input: "results/dynamics/gate.json", "results/characterize/delay_sweep.json", "results/twin/validation.json", "results/dynamics/sealed_eval.json"
     output: "results/figures/fig4.png"
@@ -232,6 +247,13 @@ def test_dag_twin_truth_read_by_another_rule(wf):
     v = check_dag(wf, config_overrides={"leak": "truth"})
     assert v == ["separation (DAG): results/dynamics/model.pt (rule dynamics_train) reads raw_data/twin_truth.json; "
                  "DESIGN 3: " + POLICY["raw_data/twin_truth.json"]["rule"]]
+
+
+def test_dag_evaluation_targets_read_by_the_search(wf):
+    v = check_dag(wf, config_overrides={"leak": "evaluation_targets"})
+    assert v == ["separation (DAG): results/policy/runs/shared_seed0.json (rule policy_search) reads "
+                 "results/policy/targets_evaluation.parquet; DESIGN 3: "
+                 + POLICY["results/policy/targets_evaluation.parquet"]["rule"]]
 
 
 def test_dag_delay_sweep_recording_read_directly(wf):

@@ -13,6 +13,7 @@ sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     torch.set_num_threads(1)
     models = {str(s): load(p) for s, p in zip(snakemake.params.seeds, snakemake.input.models)}
-    out = gate.sweep(models, data.frames(snakemake.input.shards), data.metas(snakemake.input.metas))
+    out = gate.sweep(models, data.frames(snakemake.input.shards), data.metas(snakemake.input.metas),
+                     snakemake.params.after_s1)
     print({k: v for k, v in out.items() if k not in ("trials", "per_tau")}, file=sys.stderr)
     write_json(out, snakemake.output[0])

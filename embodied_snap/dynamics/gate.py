@@ -1,10 +1,12 @@
 """Delay-sweep gate (paper IV-A, Fig. 4b,c): measured vs predicted peak tip speed and tip travel.
 
-The sweep is excluded from every fit. Each trial is rolled out open loop (Eq. 4) for H = 25 steps
-(0.5 s) from its recorded 20-step history ending at the last frame before the S1 release, with its
-recorded commands; the delay tau enters only through that pre-release history and the commands.
-Measured and predicted quantities use the same 50 Hz definition over the same 0.5 s:
-peak speed = max_k |tip_{k+1} - tip_k| / dt, travel = the tip's path length.
+The sweep is excluded from every fit. Each trial is rolled out open loop (Eq. 4) from its recorded
+hold, the 20-step history ending at the last frame before the S2 release, under its recorded
+commands, through the S2 release, the delay tau and the S1 release, until `after_s1` seconds after
+the S1 release (the snap's peak comes 0.45-0.65 s after the S1 command on the rig, as the servos pay
+the cable out). So tau acts through the commands, as it does in policy search. Measured and
+predicted quantities use the same 50 Hz definition over the same window: peak speed =
+max_k |tip_{k+1} - tip_k| / dt, travel = the tip's path length.
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ import torch
 
 from ..resample import COMMAND_COLUMNS, STATE_COLUMNS
 from .hold import release_row
-from .model import HISTORY, HORIZON, LOOKAHEAD, TIP
+from .model import HISTORY, LOOKAHEAD, TIP
 
 DT = 0.02
 
@@ -26,34 +28,42 @@ def speed_travel(tip: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return step.max(-1) / DT, step.sum(-1)
 
 
-def trials(frames: pd.DataFrame, metas: dict[str, dict]):
-    """Rollout inputs of every sweep trial whose record covers history and horizon."""
-    rows, xs, us, tips = [], [], [], []
+def trials(frames: pd.DataFrame, metas: dict[str, dict], after_s1: float) -> list[dict]:
+    """Rollout inputs of every sweep trial whose record covers its history and window: x (21, 21),
+    u (20 + H + 4, 9), the measured tip (H + 1, 3), H = its window in steps."""
+    out = []
     for gid, f in frames.groupby("group_id", sort=True):
         m = metas[gid]
         t = f["t"].to_numpy()
-        i = release_row(t, m["labels"]["t_s1"])
-        if i < HISTORY or i + HORIZON + LOOKAHEAD - 1 >= len(t):
+        i = release_row(t, m["labels"]["t_s2"])
+        H = int(np.ceil((m["labels"]["t_s1"] + after_s1 - t[i]) / DT))
+        if i < HISTORY or i + H + LOOKAHEAD - 1 >= len(t):
             continue
         X = f[STATE_COLUMNS].to_numpy(np.float32)
         U = f[COMMAND_COLUMNS].to_numpy(np.float32)
-        xs.append(X[i - HISTORY:i + 1])
-        us.append(U[i - HISTORY + 1:i + HORIZON + LOOKAHEAD])
-        tips.append(X[i:i + HORIZON + 1, TIP])
-        rows.append(dict(group_id=gid, session=m["session"], tau=float(m["program"]["tau"])))
-    return rows, np.asarray(xs), np.asarray(us), np.asarray(tips, np.float64)
+        out.append(dict(group_id=gid, session=m["session"], tau=float(m["program"]["tau"]), H=H,
+                        x=X[i - HISTORY:i + 1], u=U[i - HISTORY + 1:i + H + LOOKAHEAD],
+                        tip=X[i:i + H + 1, TIP].astype(np.float64)))
+    return out
 
 
 @torch.inference_mode()
-def sweep(models: dict, frames: pd.DataFrame, metas: dict[str, dict]) -> dict:
+def sweep(models: dict, frames: pd.DataFrame, metas: dict[str, dict], after_s1: float) -> dict:
     """Per trial: measured and per-seed predicted peak speed and travel; per tau: medians."""
-    rows, xs, us, tip = trials(frames, metas)
-    v_meas, d_meas = speed_travel(tip)
-    pred = {}
-    for seed, model in models.items():
-        x = model.rollout(torch.from_numpy(xs), torch.from_numpy(us), HORIZON).numpy()
-        ptip = np.concatenate([tip[:, :1], x[..., TIP].astype(np.float64)], 1)
-        pred[seed] = speed_travel(ptip)
+    tr = trials(frames, metas, after_s1)
+    meas = np.array([speed_travel(r["tip"]) for r in tr])  # (n, 2)
+    v_meas, d_meas = meas[:, 0], meas[:, 1]
+    pred = {s: np.zeros((len(tr), 2)) for s in models}
+    for H in sorted({r["H"] for r in tr}):  # one batch per window length
+        k = [j for j, r in enumerate(tr) if r["H"] == H]
+        xs = torch.from_numpy(np.stack([tr[j]["x"] for j in k]))
+        us = torch.from_numpy(np.stack([tr[j]["u"] for j in k]))
+        tip0 = np.stack([tr[j]["tip"][:1] for j in k])
+        for seed, model in models.items():
+            x = model.rollout(xs, us, H).numpy()
+            pred[seed][k] = np.stack(speed_travel(np.concatenate([tip0, x[..., TIP].astype(np.float64)], 1)), 1)
+    pred = {s: (p[:, 0], p[:, 1]) for s, p in pred.items()}
+    rows = [{k: r[k] for k in ("group_id", "session", "tau", "H")} for r in tr]
     for k, r in enumerate(rows):
         r.update(v_meas=float(v_meas[k]), travel_meas_m=float(d_meas[k]),
                  v_pred={s: float(p[0][k]) for s, p in pred.items()},
@@ -72,6 +82,8 @@ def sweep(models: dict, frames: pd.DataFrame, metas: dict[str, dict]) -> dict:
     best.update({s: float(taus[np.argmax([p["v_pred"][s] for p in per_tau])]) for s in pred})
     return {
         "n": len(rows),
+        "window": {"from": "last frame before the S2 release", "after_s1_s": after_s1,
+                   "rollout_steps": [min(r["H"] for r in rows), max(r["H"] for r in rows)]},
         "trials": rows,
         "per_tau": per_tau,
         "best_tau_s": best,

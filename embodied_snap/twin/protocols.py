@@ -76,18 +76,43 @@ def primitive(p: dict, bearing: float, dt: float, ramp_s: float = 0.0, s2_ramp: 
     tr = t[rel]
     if ramp_s > 0:
         a3 = a2 = np.clip(1.0 - (tr - t_s) / ramp_s, 0.0, 1.0)
+        a1 = (tr < t1).astype(float)
+        c = _g(bearing)
+        cum = np.stack([rho[0] * a1, rho[0] * a1 + rho[1] * a2, rho[0] * a1 + rho[1] * a2 + rho[2] * a3], 1)
+        g = (cum[:, :, None] * c[None, None, :]).reshape(-1, 9)
+        g[:, 6:9] -= (p["s3"] * (1.0 - a3))[:, None]
+        # a released cable is never taken up again: running minimum from the full preload
+        goals[rel] = np.minimum.accumulate(np.vstack([W[None, :], g]), axis=0)[1:]
     else:
-        a3 = np.zeros_like(tr)
-        a2 = np.where(tr < t2, 1.0, np.clip(1.0 - (tr - t2) / s2_ramp, 0.0, 1.0))
-    a1 = (tr < t1).astype(float)
-    c = _g(bearing)
-    cum = np.stack([rho[0] * a1, rho[0] * a1 + rho[1] * a2, rho[0] * a1 + rho[1] * a2 + rho[2] * a3], 1)
-    g = (cum[:, :, None] * c[None, None, :]).reshape(-1, 9)
-    g[:, 6:9] -= (p["s3"] * (1.0 - a3))[:, None]
-    # a released cable is never taken up again: running minimum from the full preload
-    goals[rel] = np.minimum.accumulate(np.vstack([W[None, :], g]), axis=0)[1:]
+        goals[rel] = release_goals(np.asarray(rho), p["s3"], bearing, tr, t2, t1)
     times = dict(t_preload=T_HANG, t_slack=t_s, t_s2=t2, t_s1=t1)
     return goals, times
+
+
+def release_goals(rho, s3, bearing, tr, t2, t1) -> np.ndarray:
+    """Goals (..., T, 9) of the instantaneous primitive at times tr (T,) after its S3 slack: S3 paid
+    out by s3, S2 released over S2_RAMP from t2, S1 at t1. rho (..., 3); s3, bearing, t2, t1 (...).
+    The same map turns the six policy parameters into servo goals for the model and the servos.
+    Each goal is monotone after the slack, so the never-take-up-again running minimum from the
+    full preload W is min(W, goal at the slack, goal now)."""
+    rho, e = np.asarray(rho, float), (..., None)
+    c = _g(np.asarray(bearing, float)[e])  # (..., 3)
+    t2, t1 = np.asarray(t2)[e], np.asarray(t1)[e]
+    a2 = np.where(tr < t2, 1.0, np.clip(1.0 - (tr - t2) / S2_RAMP, 0.0, 1.0))
+    a1 = (tr < t1).astype(float)
+    a2, a1 = np.broadcast_arrays(a2, a1)
+    one = np.ones(a1.shape[:-1] + (1,))
+    W = (np.cumsum(rho, -1)[..., :, None] * c[..., None, :]).reshape(*rho.shape[:-1], 1, 9)
+    return np.minimum(np.minimum(W, _release(rho, s3, c, one, one)), _release(rho, s3, c, a1, a2))
+
+
+def _release(rho, s3, c, a1, a2):
+    """Goals (..., T, 9) with S1 and S2 held at fractions a1, a2 (..., T) and S3 slack."""
+    r1, r2, r3 = (rho[..., k][..., None] for k in range(3))
+    cum = np.stack([r1 * a1, r1 * a1 + r2 * a2, r1 * a1 + r2 * a2 + r3 * 0.0], -1)  # (..., T, 3)
+    g = (cum[..., :, None] * c[..., None, None, :]).reshape(*cum.shape[:-1], 9)
+    g[..., 6:9] -= np.asarray(s3, float)[..., None, None] * 1.0
+    return g
 
 
 def direct_release(p: dict, bearing: float, dt: float, sync: bool = True):

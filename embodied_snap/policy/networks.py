@@ -1,0 +1,64 @@
+"""The four policy architectures of paper IV-B/IV-C as functions of a flat parameter vector theta.
+
+Every architecture returns the same six dimensionless outputs u in [-1, 1] per target, in the order
+ACTIONS = (rho1, dphi, tau, rho2, rho3, s3).
+- shared (155): one 6-8-8-3 tanh network (Eq. 6) evaluated once per section on [g_norm, one-hot i];
+  section 1 gives (rho1, dphi, tau), section 2 rho2, section 3 (rho3, s3); unused outputs dropped.
+- centralised (158) and centralised16 (438): one 3-h-h-6 tanh network on g_norm, h = 8 or 16.
+- unshared (366): three local 3-8-8-k networks on g_norm, k = 3, 1, 2 outputs for S1, S2, S3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+ACTIONS = ("rho1", "dphi", "tau", "rho2", "rho3", "s3")
+
+
+def mlp_sizes(n_in: int, width: int, n_out: int) -> list[tuple[int, int]]:
+    return [(width, n_in), (width, width), (n_out, width)]
+
+
+ARCHS = {
+    "shared": [mlp_sizes(6, 8, 3)],
+    "centralised": [mlp_sizes(3, 8, 6)],
+    "centralised16": [mlp_sizes(3, 16, 6)],
+    "unshared": [mlp_sizes(3, 8, 3), mlp_sizes(3, 8, 1), mlp_sizes(3, 8, 2)],
+}
+
+
+def n_params(arch: str) -> int:
+    return sum(o * i + o for net in ARCHS[arch] for o, i in net)
+
+
+def _unpack(theta: np.ndarray, arch: str) -> list[list[tuple[np.ndarray, np.ndarray]]]:
+    nets, k = [], 0
+    for net in ARCHS[arch]:
+        layers = []
+        for o, i in net:
+            W = theta[k:k + o * i].reshape(o, i)
+            k += o * i
+            layers.append((W, theta[k:k + o]))
+            k += o
+        nets.append(layers)
+    assert k == len(theta), f"{arch}: theta has {len(theta)} parameters, the network {k}"
+    return nets
+
+
+def _forward(layers, x: np.ndarray) -> np.ndarray:
+    for W, b in layers:
+        x = np.tanh(x @ W.T + b)  # tanh on every layer, the output included (Eq. 6)
+    return x
+
+
+def outputs(arch: str, theta: np.ndarray, g: np.ndarray) -> np.ndarray:
+    """u (N, 6) in ACTIONS order for normalised target features g (N, 3)."""
+    nets = _unpack(np.asarray(theta, float), arch)
+    if arch == "shared":
+        eye = np.eye(3)
+        u = [_forward(nets[0], np.concatenate([g, np.broadcast_to(eye[i], (len(g), 3))], 1)) for i in range(3)]
+        return np.stack([u[0][:, 0], u[0][:, 1], u[0][:, 2], u[1][:, 0], u[2][:, 0], u[2][:, 1]], 1)
+    if arch == "unshared":
+        u1, u2, u3 = (_forward(net, g) for net in nets)
+        return np.concatenate([u1, u2, u3], 1)
+    return _forward(nets[0], g)

@@ -1,0 +1,111 @@
+"""CMA-ES policy search (paper IV-B/IV-C, section V protocol) and the fixed-primitive baseline.
+
+A policy maps a target to the six primitive parameters: canonical target (Eq. 5), features
+g = (d, e, r) normalised by the training targets' statistics, network outputs (Eq. 6 or a
+baseline), Eq. 7 decoding. CMA-ES (pycma) maximises the mean reward over each generation's
+training targets; after every generation the CMA-ES mean is scored on the selection targets
+(held-out reward, logged against simulator evaluations) and the best of those is selected.
+"""
+
+from __future__ import annotations
+
+import cma
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from .. import bearing as BR
+from . import geometry, networks
+from .actions import decode
+
+OUTCOME = ("lateral_m", "gap_m", "miss_m", "v_pk_mps", "t_pk_s", "t_ca_s", "reward", "c_h", "p_snap",
+           "disagreement_m")
+
+
+class Targets:
+    """Canonical positions, normals and raw features of a target table."""
+
+    def __init__(self, df: pd.DataFrame, ws: dict):
+        n = np.asarray(ws["hanging_axis"])
+        p = df[["x", "y", "z"]].to_numpy(float)
+        self.df = df.reset_index(drop=True)
+        self.p, rot = geometry.canonical(p, n, ws["phi0_deg"] + ws["delta_str_deg"])
+        self.normal = BR.rotate(df[["nx", "ny", "nz"]].to_numpy(float), rot, n)
+        self.g = geometry.features(self.p, n)
+
+    def take(self, idx):
+        t = object.__new__(Targets)
+        t.df, t.p, t.normal, t.g = self.df.iloc[idx].reset_index(drop=True), self.p[idx], self.normal[idx], self.g[idx]
+        return t
+
+    def __len__(self):
+        return len(self.p)
+
+
+def feature_stats(train: Targets) -> dict:
+    return {"mu": train.g.mean(0).tolist(), "sd": train.g.std(0).tolist()}
+
+
+def policy_actions(arch: str, theta, T: Targets, norm: dict, ranges: dict) -> dict:
+    g = (T.g - np.asarray(norm["mu"])) / np.asarray(norm["sd"])
+    return decode(networks.outputs(arch, theta, g), ranges)
+
+
+def score(sim, acts: list[dict], T: Targets) -> np.ndarray:
+    """Mean reward of each command set in acts over the targets T, as one batch of rollouts."""
+    n = len(T)
+    cat = {k: np.concatenate([a[k] for a in acts]) for k in acts[0]}
+    r = sim.run(cat, np.tile(T.p, (len(acts), 1)), np.tile(T.normal, (len(acts), 1)))["reward"]
+    return r.reshape(len(acts), n).mean(1)
+
+
+def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
+          ranges: dict, generations: int, popsize: int, sigma0: float, progress: bool = True) -> dict:
+    """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation."""
+    npar = networks.n_params(arch)
+    es = cma.CMAEvolutionStrategy(np.zeros(npar), sigma0,
+                                  {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
+    curve, best = [], (-np.inf, None, 0)
+    per_gen = popsize * int((gen_of == 0).sum())
+    bar = tqdm(range(generations), desc=f"{arch} seed {seed}", disable=not progress, mininterval=5)
+    for gen in bar:
+        X = es.ask()
+        T = train.take(np.flatnonzero(gen_of == gen))
+        R = score(sim, [policy_actions(arch, x, T, norm, ranges) for x in X], T)
+        es.tell(X, list(-R))
+        held = float(score(sim, [policy_actions(arch, es.mean, select, norm, ranges)], select)[0])
+        curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=held,
+                          train_reward_mean=float(R.mean()), train_reward_best=float(R.max())))
+        if held > best[0]:
+            best = (held, np.array(es.mean), gen + 1)
+        bar.set_postfix(heldout=f"{held:.3f}")
+    return dict(arch=arch, seed=seed, n_params=npar, evaluations_per_generation=per_gen, curve=curve,
+                selected_generation=best[2], selection_reward=best[0],
+                final_heldout_reward=curve[-1]["heldout_reward"], theta=best[1].tolist(), norm=norm)
+
+
+def outcomes(sim, act: dict, T: Targets, arch: str, seed: int) -> pd.DataFrame:
+    """Per-target strike of commands act on targets T, with the commands after all clamps."""
+    out = sim.run(act, T.p, T.normal)
+    df = pd.DataFrame({"target_id": T.df["target_id"], "arch": arch, "seed": seed,
+                       "bearing_deg": T.df["bearing_deg"], "d_m": T.g[:, 0], "e_m": T.g[:, 1], "r_m": T.g[:, 2]})
+    for k in ("rho1", "rho2", "rho3", "s3"):
+        df[k] = out[k]
+    df["dphi_deg"], df["tau_s"] = out["dphi"], out["tau"]
+    for k in OUTCOME:
+        df[k] = out[k]
+    return df
+
+
+def fixed_primitives(n: int, seed: int, ranges: dict) -> list[dict]:
+    """n fixed parameter sets: a Latin hypercube over the six action ranges (u space, Eq. 7)."""
+    from scipy.stats import qmc
+    u = qmc.LatinHypercube(d=6, rng=np.random.default_rng(seed)).random(n) * 2 - 1
+    return [decode(u[i:i + 1], ranges) for i in range(n)]
+
+
+def best_fixed(sim, prims: list[dict], select: Targets) -> tuple[int, np.ndarray]:
+    """The fixed primitive with the highest mean reward on the selection targets."""
+    acts = [{k: np.repeat(v, len(select)) for k, v in p.items()} for p in prims]
+    r = score(sim, acts, select)
+    return int(np.argmax(r)), r

@@ -1,0 +1,67 @@
+"""The hardware-gated simulator that policy search runs on (paper IV-A/IV-B, section V protocol).
+
+For commands (rho1, rho2, rho3, s3, dphi, tau) and canonical targets: the hold model gives the
+pre-release configuration at bearing phi0 + dphi (the state history before the S2 release), the
+primitive's goal map (twin.protocols.release_goals, the same map the servos get) gives the nine
+goal schedules through the S2 and S1 releases, and the three-seed GRU ensemble rolls the arm out
+(Eq. 4) until after_s1 past the latest S1 release. The cup is the tracked tip extended along the
+tip axis by the end effector's length. Reward and attachment follow Eq. 9-11.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..dynamics import hold
+from ..dynamics.model import AXIS, HISTORY, LOOKAHEAD, TIP
+from ..twin.protocols import PHI0_DEG, release_goals
+from . import reward as RW
+from .actions import project_timing, workspace_clamp
+
+DT = RW.DT
+ANCHOR_S = -DT / 2  # the hold's last frame lies half a frame before the S2 release starts
+
+
+class Simulator:
+    def __init__(self, ensemble, bank: dict, snap, workspace: dict, cfg: dict, after_s1: float, ee_m: float):
+        self.ens, self.bank, self.snap, self.ws, self.cfg, self.ee_m = ensemble, bank, snap, workspace, cfg, ee_m
+        self.timing = tuple(cfg["ranges"]["tau"])
+        self.H = int(np.ceil((self.timing[1] + after_s1 - ANCHOR_S) / DT))
+        # goal times relative to the S2 release: u_{t-20} .. u_{t+H+4} around the anchor t
+        self.t_u = ANCHOR_S + DT * np.arange(-HISTORY, self.H + LOOKAHEAD)
+
+    def commands(self, act: dict) -> dict:
+        """Workspace clamp in the commanded bearing, then Eq. 8."""
+        act = workspace_clamp(act, PHI0_DEG + act["dphi"], self.ws, self.cfg["workspace_fraction"])
+        act["tau"] = project_timing(act["tau"], self.timing)
+        return act
+
+    def run(self, act: dict, p: np.ndarray, normal: np.ndarray) -> dict:
+        """Clamped commands act {name: (N,)} against canonical targets p, normals (N, 3)."""
+        act = self.commands(act)
+        rho = np.stack([act["rho1"], act["rho2"], act["rho3"]], -1)
+        U = release_goals(rho, act["s3"], PHI0_DEG + act["dphi"], self.t_u, 0.0, act["tau"])
+        xs, c_h = hold.start(self.bank, act, U[:, :HISTORY + 1])
+        out = self.ens.rollout(xs, U[:, 1:], self.H, parts=(TIP, AXIS))
+        tip, axis = out["mean_parts"]
+        cup = tip + self.ee_m * axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        k_s1 = np.ceil((act["tau"] - ANCHOR_S) / DT).astype(int)
+        s = RW.strike(cup, tip, p, normal, k_s1)
+        p_snap = self.snap.predict(act["rho1"], act["rho2"])
+        dis = out["disagreement"].mean(-1)
+        r = RW.reward(s, c_h, p_snap, dis, self.cfg["reward"])
+        return dict(act, **s, reward=r, c_h=c_h, p_snap=p_snap, disagreement_m=dis)
+
+
+def from_files(models, bank_path, snap_path, workspace_path, cfg: dict, after_s1: float, ee_m: float,
+               device=None):
+    """The simulator of a workflow job: ensemble, hold bank, P_snap and workspace from their files."""
+    import json
+
+    from ..characterize import snap as SN
+    from ..dynamics.rollout import Ensemble
+
+    with np.load(bank_path) as z:
+        bank = {k: z[k] for k in ("q", "x", "n")}
+    ws = json.load(open(workspace_path))
+    return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, cfg, after_s1, ee_m), ws

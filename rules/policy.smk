@@ -1,0 +1,221 @@
+# Policy search (paper IV-B, IV-C, V-A, V-B; DESIGN section 4, step 6): the workspace and target
+# sets, one CMA-ES job per architecture x seed, the selected policies on the 400 evaluation
+# targets, the best fixed primitive, the analyses, Fig. 5 and results/policy/claims.csv.
+# Evaluation targets are read only by policy_evaluate and policy_fixed (esnap check-separation).
+
+POL = "results/policy"
+PCFG = config["policy"]
+PBUDGET = BUDGET["policy"]
+POLICY_RUNS_OF = [
+    (arch, seed) for arch, n in PBUDGET["seeds"].items() for seed in range(n)
+]
+POLICY_RUNS = [f"{POL}/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF]
+POLICY_EVALS = [f"{POL}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
+SIMULATOR = dict(
+    models=DMODELS,
+    bank=f"{DYN}/hold_bank.npz",
+    snap="results/characterize/snap.json",
+    workspace=f"{POL}/workspace.json",
+)
+SIM_CODE = code(
+    "policy/simulate",
+    "policy/reward",
+    "policy/actions",
+    "policy/networks",
+    "policy/geometry",
+    "policy/search",
+    "bearing",
+    "dynamics/rollout",
+    "dynamics/hold",
+    "dynamics/model",
+    "characterize/snap",
+    "twin/protocols",
+)
+SIM_PARAMS = dict(
+    policy=PCFG, after_s1=DCFG["after_s1_s"], ee_m=config["rig"]["end_effector_m"]
+)
+
+
+wildcard_constraints:
+    arch="|".join(PBUDGET["seeds"]),
+
+
+rule policy_workspace:
+    """Strike cloud, strike-bearing offset and directional workspace of the training groups."""
+    input:
+        shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
+        metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
+        bank=f"{DYN}/hold_bank.npz",
+        code=code("policy/targets", "dynamics/hold", "dynamics/data", "bearing"),
+    output:
+        f"{POL}/workspace.json",
+    log:
+        "logs/policy/workspace.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        groups=HOLD_GROUPS,
+        after_s1=DCFG["after_s1_s"],
+        ee_m=config["rig"]["end_effector_m"],
+    script:
+        "../workflow_scripts/policy_workspace.py"
+
+
+rule policy_targets:
+    """Training (per generation), selection and evaluation targets, each set from its own seed."""
+    input:
+        workspace=f"{POL}/workspace.json",
+        code=code("policy/targets", "bearing"),
+    output:
+        training=f"{POL}/targets_training.parquet",
+        selection=f"{POL}/targets_selection.parquet",
+        evaluation=f"{POL}/targets_evaluation.parquet",
+    log:
+        "logs/policy/targets.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        sizes=dict(
+            training=PBUDGET["generations"] * PBUDGET["targets_per_candidate"],
+            selection=PBUDGET["selection_targets"],
+            evaluation=PBUDGET["evaluation_targets"],
+        ),
+        per_generation=PBUDGET["targets_per_candidate"],
+        seeds=PCFG["target_seeds"],
+        arc_deg=PCFG["arc_deg"],
+        jitter_m=PCFG["target_jitter_m"],
+    script:
+        "../workflow_scripts/policy_targets.py"
+
+
+rule policy_search:
+    """CMA-ES for one architecture and seed; held-out reward on the selection targets per generation."""
+    input:
+        **SIMULATOR,
+        training=f"{POL}/targets_training.parquet",
+        selection=f"{POL}/targets_selection.parquet",
+        code=SIM_CODE,
+    output:
+        f"{POL}/runs/{{arch}}_seed{{seed}}.json",
+    log:
+        "logs/policy/search_{arch}_seed{seed}.log",
+    benchmark:
+        "benchmarks/policy/search_{arch}_seed{seed}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        arch=lambda wc: wc.arch,
+        seed=lambda wc: int(wc.seed),
+        generations=PBUDGET["generations"],
+        popsize=PBUDGET["popsize"],
+    script:
+        "../workflow_scripts/policy_search.py"
+
+
+rule policy_evaluate:
+    """The selected policy of one run on the evaluation targets."""
+    input:
+        **SIMULATOR,
+        run=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
+        evaluation=f"{POL}/targets_evaluation.parquet",
+        code=SIM_CODE,
+    output:
+        f"{POL}/eval/{{arch}}_seed{{seed}}.parquet",
+    log:
+        "logs/policy/evaluate_{arch}_seed{seed}.log",
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+    script:
+        "../workflow_scripts/policy_evaluate.py"
+
+
+rule policy_fixed:
+    """The best of the fixed primitives on the selection targets, evaluated on the evaluation targets."""
+    input:
+        **SIMULATOR,
+        selection=f"{POL}/targets_selection.parquet",
+        evaluation=f"{POL}/targets_evaluation.parquet",
+        code=SIM_CODE,
+    output:
+        eval=f"{POL}/eval/fixed.parquet",
+        summary=f"{POL}/fixed.json",
+    log:
+        "logs/policy/fixed.log",
+    benchmark:
+        "benchmarks/policy/fixed.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        seed=config["seed"],
+    script:
+        "../workflow_scripts/policy_fixed.py"
+
+
+rule policy_summary:
+    """V-A and V-B statistics: reward per architecture and Mann-Whitney tests over seeds, attachment
+    (Eq. 11) over the tolerance sweep, evaluations to reach the matched centralised level, and the
+    selected shared policy against the best fixed primitive on the evaluation targets.
+    """
+    input:
+        runs=POLICY_RUNS,
+        evals=POLICY_EVALS,
+        fixed=f"{POL}/eval/fixed.parquet",
+        code=code("policy/analysis"),
+    output:
+        f"{POL}/summary.json",
+    log:
+        "logs/policy/summary.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        tolerances=PCFG["tolerances_m"],
+        d_f=PCFG["reward"]["d_f_m"],
+        v_min=PCFG["reward"]["v_min_sim_mps"],
+        budget_evaluations=PBUDGET["generations"]
+        * PBUDGET["popsize"]
+        * PBUDGET["targets_per_candidate"],
+    script:
+        "../workflow_scripts/policy_summary.py"
+
+
+rule fig_benchmark:
+    """Fig. 5: held-out reward over evaluations, attachment over tolerance, evaluations to reach."""
+    input:
+        summary=f"{POL}/summary.json",
+        code=code("figures/benchmark", "figures/style"),
+    output:
+        pdf="results/figs/fig5_benchmark.pdf",
+        png=report(
+            "results/figs/fig5_benchmark.png",
+            caption="../report/fig5_benchmark.rst",
+            category="Policy",
+        ),
+    log:
+        "logs/fig_benchmark.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/fig_benchmark.py"
+
+
+rule table_policy_claims:
+    """Every architecture and generalisation number of sections V-A and V-B beside the paper's value."""
+    input:
+        summary=f"{POL}/summary.json",
+        reference="reference/paper_values.yaml",
+        code=code("policy/claims", "reference"),
+    output:
+        f"{POL}/claims.csv",
+    log:
+        "logs/policy/claims.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/policy_claims.py"

@@ -1,0 +1,23 @@
+"""The selected policy of one run on the evaluation targets (used by nothing before this job)."""
+
+import json
+import sys
+
+import numpy as np
+import pandas as pd
+import torch
+
+from embodied_snap.policy import search, simulate
+from embodied_snap.provenance import tracked
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    torch.set_num_threads(snakemake.threads)
+    P, I = snakemake.params, snakemake.input
+    sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m)
+    run = json.load(open(I.run))
+    T = search.Targets(pd.read_parquet(I.evaluation), ws)
+    act = search.policy_actions(run["arch"], np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])
+    df = search.outcomes(sim, act, T, run["arch"], run["seed"])
+    print(df[["miss_m", "v_pk_mps", "reward"]].describe(), file=sys.stderr)
+    df.to_parquet(snakemake.output[0], index=False)

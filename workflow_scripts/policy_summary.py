@@ -1,0 +1,19 @@
+"""Architecture benchmark and generalisation (V-A, V-B): results/policy/summary.json."""
+
+import json
+import sys
+
+import pandas as pd
+
+from embodied_snap.policy.analysis import summarize
+from embodied_snap.provenance import tracked
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    i, p = snakemake.input, snakemake.params
+    runs = [json.load(open(f)) for f in i.runs]
+    evals = pd.concat([pd.read_parquet(f) for f in i.evals if f != i.fixed], ignore_index=True)
+    s = summarize(runs, evals, pd.read_parquet(i.fixed), p.tolerances, p.d_f, p.v_min, p.budget_evaluations)
+    print(json.dumps({k: s[k] for k in ("archs", "seeds", "reward", "reach")}, indent=1), file=sys.stderr)
+    with open(snakemake.output[0], "w") as f:
+        json.dump(s, f, indent=1)
