@@ -16,6 +16,8 @@ import numpy as np
 import pandas as pd
 from scipy.stats import mannwhitneyu
 
+from .reward import attached
+
 ARCHS = ("shared", "centralised", "centralised16", "unshared")  # plotting and table order
 MATCHED = "centralised"  # the parameter-matched baseline (158 weights) that sets the reward level
 REPORT_TOL_M = 0.05  # the paper's reporting tolerance (V-A): a protocol choice, not a result
@@ -65,8 +67,9 @@ def _archs(present) -> list[str]:
 
 
 def attachment(df: pd.DataFrame, r: float, d_f: float, v_min: float) -> pd.Series:
-    """Eq. 11: a_i(r) = [l_i <= r, |g_i| <= d_f, v_pk >= v_min^sim], one bool per evaluation row."""
-    return (df.lateral_m <= r) & (df.gap_m.abs() <= d_f) & (df.v_pk_mps >= v_min)
+    """Eq. 11 (`reward.attached`), one bool per evaluation row."""
+    return pd.Series(attached(df.lateral_m.to_numpy(), df.gap_m.to_numpy(), df.v_pk_mps.to_numpy(), r, d_f, v_min),
+                     index=df.index)
 
 
 def attachment_rates(evals: pd.DataFrame, tolerances, d_f: float, v_min: float) -> pd.DataFrame:

@@ -51,34 +51,45 @@ def policy_actions(arch: str, theta, T: Targets, norm: dict, ranges: dict) -> di
     return decode(networks.outputs(arch, theta, g), ranges)
 
 
-def score(sim, acts: list[dict], T: Targets) -> np.ndarray:
-    """Mean reward of each command set in acts over the targets T, as one batch of rollouts."""
-    n = len(T)
-    cat = {k: np.concatenate([a[k] for a in acts]) for k in acts[0]}
-    r = sim.run(cat, np.tile(T.p, (len(acts), 1)), np.tile(T.normal, (len(acts), 1)))["reward"]
-    return r.reshape(len(acts), n).mean(1)
+def score(sim, jobs: list[tuple[dict, Targets]]) -> np.ndarray:
+    """Mean reward of each (commands, targets) pair, all as one batch of rollouts."""
+    cat = {k: np.concatenate([a[k] for a, _ in jobs]) for k in jobs[0][0]}
+    r = sim.run(cat, np.concatenate([T.p for _, T in jobs]), np.concatenate([T.normal for _, T in jobs]))["reward"]
+    return np.array([x.mean() for x in np.split(r, np.cumsum([len(T) for _, T in jobs])[:-1])])
 
 
 def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
           ranges: dict, generations: int, popsize: int, sigma0: float, progress: bool = True) -> dict:
-    """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation."""
+    """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation.
+
+    The held-out score of the mean after generation g rides in the batch of generation g + 1 (the
+    mean that generation samples around), so each generation is one batch of rollouts."""
     npar = networks.n_params(arch)
     es = cma.CMAEvolutionStrategy(np.zeros(npar), sigma0,
                                   {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
     curve, best = [], (-np.inf, None, 0)
     per_gen = popsize * int((gen_of == 0).sum())
+    held_job = lambda: (policy_actions(arch, es.mean, select, norm, ranges), select)  # noqa: E731
+
+    def log_held(held, mean):
+        nonlocal best
+        curve[-1]["heldout_reward"] = held
+        if held > best[0]:
+            best = (held, mean, len(curve))
+        bar.set_postfix(heldout=f"{held:.3f}")
+
     bar = tqdm(range(generations), desc=f"{arch} seed {seed}", disable=not progress, mininterval=5)
     for gen in bar:
         X = es.ask()
         T = train.take(np.flatnonzero(gen_of == gen))
-        R = score(sim, [policy_actions(arch, x, T, norm, ranges) for x in X], T)
-        es.tell(X, list(-R))
-        held = float(score(sim, [policy_actions(arch, es.mean, select, norm, ranges)], select)[0])
-        curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=held,
-                          train_reward_mean=float(R.mean()), train_reward_best=float(R.max())))
-        if held > best[0]:
-            best = (held, np.array(es.mean), gen + 1)
-        bar.set_postfix(heldout=f"{held:.3f}")
+        jobs = [(policy_actions(arch, x, T, norm, ranges), T) for x in X]
+        R = score(sim, jobs + [held_job()] if gen else jobs)
+        if gen:  # es.mean is still the mean after the previous generation
+            log_held(float(R[-1]), np.array(es.mean))
+        es.tell(X, list(-R[:popsize]))
+        curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=None,
+                          train_reward_mean=float(R[:popsize].mean()), train_reward_best=float(R[:popsize].max())))
+    log_held(float(score(sim, [held_job()])[0]), np.array(es.mean))
     return dict(arch=arch, seed=seed, n_params=npar, evaluations_per_generation=per_gen, curve=curve,
                 selected_generation=best[2], selection_reward=best[0],
                 final_heldout_reward=curve[-1]["heldout_reward"], theta=best[1].tolist(), norm=norm)
@@ -106,6 +117,5 @@ def fixed_primitives(n: int, seed: int, ranges: dict) -> list[dict]:
 
 def best_fixed(sim, prims: list[dict], select: Targets) -> tuple[int, np.ndarray]:
     """The fixed primitive with the highest mean reward on the selection targets."""
-    acts = [{k: np.repeat(v, len(select)) for k, v in p.items()} for p in prims]
-    r = score(sim, acts, select)
+    r = score(sim, [({k: np.repeat(v, len(select)) for k, v in p.items()}, select) for p in prims])
     return int(np.argmax(r)), r
