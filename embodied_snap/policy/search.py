@@ -12,6 +12,7 @@ from __future__ import annotations
 import cma
 import numpy as np
 import pandas as pd
+from scipy.stats import qmc
 from tqdm import tqdm
 
 from .. import bearing as BR
@@ -110,7 +111,6 @@ def outcomes(sim, act: dict, T: Targets, arch: str, seed: int) -> pd.DataFrame:
 
 def fixed_primitives(n: int, seed: int, ranges: dict) -> list[dict]:
     """n fixed parameter sets: a Latin hypercube over the six action ranges (u space, Eq. 7)."""
-    from scipy.stats import qmc
     u = qmc.LatinHypercube(d=6, rng=np.random.default_rng(seed)).random(n) * 2 - 1
     return [decode(u[i:i + 1], ranges) for i in range(n)]
 

@@ -10,10 +10,14 @@ tip axis by the end effector's length. Reward and attachment follow Eq. 9-11.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
+from ..characterize import snap as SN
 from ..dynamics import hold
 from ..dynamics.model import AXIS, HISTORY, LOOKAHEAD, TIP
+from ..dynamics.rollout import Ensemble
 from ..twin.protocols import PHI0_DEG, release_goals
 from . import reward as RW
 from .actions import project_timing, workspace_clamp
@@ -56,11 +60,6 @@ class Simulator:
 def from_files(models, bank_path, snap_path, workspace_path, cfg: dict, after_s1: float, ee_m: float,
                device=None):
     """The simulator of a workflow job: ensemble, hold bank, P_snap and workspace from their files."""
-    import json
-
-    from ..characterize import snap as SN
-    from ..dynamics.rollout import Ensemble
-
     with np.load(bank_path) as z:
         bank = {k: z[k] for k in ("q", "x", "n")}
     ws = json.load(open(workspace_path))

@@ -24,8 +24,6 @@ from ..dynamics.model import AXIS, TIP
 from ..resample import STATE_COLUMNS
 from ..twin.protocols import PHI0_DEG
 
-DT = 0.02
-
 
 def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float, ee_m: float,
               bin_deg: float = 10.0) -> dict:
