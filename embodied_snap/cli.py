@@ -70,7 +70,7 @@ def cmd_validate(a) -> int:
 
 
 def cmd_audit(a) -> int:
-    from .audit import audit, format_audit
+    from .lineage.audit import audit, format_audit
 
     report = audit(a.result, root=a.root)
     print(json.dumps(report, indent=1, default=str) if a.json else format_audit(report))
@@ -78,7 +78,7 @@ def cmd_audit(a) -> int:
 
 
 def cmd_check_separation(a) -> int:
-    from .separation import check
+    from .lineage.checks import check
 
     res = check(a.root, static=not a.no_static, records=not a.no_records)
     for v in res["violations"]:
@@ -88,7 +88,7 @@ def cmd_check_separation(a) -> int:
 
 
 def cmd_prov(a) -> int:
-    from .provexport import export
+    from .lineage.prov import export
 
     print(export(a.root, a.out))
     return 0

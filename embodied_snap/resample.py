@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 import pandas as pd
-import pyarrow.parquet as pq
 
+from .io import read_table
 from .quat import to_matrix
 from .rawformat import SERVO_IDS, TIP_AXIS_LOCAL, group_paths
 from .validate import TRACKED_BODIES, RecordingError
@@ -39,7 +39,7 @@ def _empty_frame() -> pd.DataFrame:
 
 def _columns(path, names: list[str]) -> dict[str, np.ndarray]:
     """Named parquet columns as numpy arrays: no DataFrame on this hot path (~1,100 groups)."""
-    table = pq.read_table(path, columns=names)
+    table = read_table(path, columns=names)
     return {n: table.column(n).to_numpy() for n in names}
 
 

@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 import pandera.pandas as pa
 import pyarrow as pa_arrow
-import pyarrow.parquet as pq
 from pandera.errors import SchemaError, SchemaErrorReason, SchemaErrors
 
+from .io import parquet_rows, read_parquet
 from .rawformat import (
     BODIES,
     CATEGORIES,
@@ -263,14 +263,14 @@ def _read_parquet(path: Path, gid: str) -> pd.DataFrame:
     if not path.exists():
         raise RecordingError(path, gid, "missing", "group has its three files")
     try:
-        return pd.read_parquet(path)
+        return read_parquet(path)
     except (OSError, ValueError, pa_arrow.ArrowException) as e:
         raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
 
 
 def _parquet_rows(path: Path, gid: str) -> int:
     try:
-        return pq.read_metadata(path).num_rows  # footer only: fast on a thousand groups
+        return parquet_rows(path)  # footer only: fast on a thousand groups
     except (OSError, ValueError, pa_arrow.ArrowException) as e:
         raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
 

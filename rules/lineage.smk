@@ -11,7 +11,7 @@ rule check_separation:
         claims=expand(
             "results/{stage}/claims.csv", stage=("characterize", "dynamics", "policy")
         ),
-        code=code("separation", "provenance"),
+        code=code("lineage/checks", "lineage/records"),
     output:
         "results/lineage/separation.json",
     log:
@@ -29,7 +29,7 @@ rule prov_export:
     input:
         "results/lineage/separation.json",
         "results/figures",
-        code=code("provexport", "provenance"),
+        code=code("lineage/prov", "lineage/checks", "lineage/records"),
     output:
         "results/lineage/prov.json",
     log:

@@ -3,8 +3,8 @@
 import os
 import time
 
-from embodied_snap import provenance as pv
-from embodied_snap.audit import audit, compact_ids, format_audit
+from embodied_snap.lineage import records as pv
+from embodied_snap.lineage.audit import audit, compact_ids, format_audit
 
 from lineage_tree import group_files as _group
 from lineage_tree import write as _write

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import pytest
 from snakemake.iocontainers import Namedlist
 
-from embodied_snap import provenance as pv
+from embodied_snap.lineage import records as pv
 
 
 def _write(root, rel, data=b"x"):
@@ -105,7 +105,7 @@ def test_tracked_inside_snakemake(tmp_path):
     _write(tmp_path, "embodied_snap/mod.py", b"# a module the script imports")
     (tmp_path / "workflow_scripts").mkdir()
     (tmp_path / "workflow_scripts/step.py").write_text(
-        "from embodied_snap.provenance import tracked\n"
+        "from embodied_snap.lineage.records import tracked\n"
         "with tracked(snakemake):\n"
         "    open(snakemake.output[0], 'w').write('out')\n")
     (tmp_path / "Snakefile").write_text(

@@ -4,8 +4,8 @@ import json
 
 from prov.model import ProvDocument
 
-from embodied_snap import provenance as pv
-from embodied_snap.provexport import NAMESPACES, export, held_out
+from embodied_snap.lineage import records as pv
+from embodied_snap.lineage.prov import NAMESPACES, export, held_out
 
 from lineage_tree import group_files as _files
 from lineage_tree import write as _write

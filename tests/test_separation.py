@@ -5,8 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from embodied_snap import provenance as pv
-from embodied_snap.separation import POLICY, check, check_dag, check_records, forbidden, shard_source
+from embodied_snap.lineage import records as pv
+from embodied_snap.lineage.checks import POLICY, check, check_dag, check_records, forbidden, shard_source
 
 from lineage_tree import group_files as _files
 from lineage_tree import write as _write

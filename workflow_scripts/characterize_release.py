@@ -5,7 +5,7 @@ import json
 import sys
 
 from embodied_snap.characterize import release, trials
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")

@@ -7,7 +7,7 @@ import numpy as np
 
 from embodied_snap.characterize import load
 from embodied_snap.characterize import servo as S
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import servo_id, write_json
 from embodied_snap.reference import paper_values
 

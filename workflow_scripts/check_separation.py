@@ -2,9 +2,9 @@
 
 import sys
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
-from embodied_snap.separation import check
+from embodied_snap.lineage.checks import check
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

@@ -3,7 +3,7 @@
 import sys
 
 from embodied_snap.dynamics import data, hold
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.windows import save_windows
 

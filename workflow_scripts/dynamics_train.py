@@ -7,7 +7,7 @@ import torch
 
 from embodied_snap.dynamics.model import n_params, save
 from embodied_snap.dynamics.train import train
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.windows import load_windows
 
 sys.stderr = open(snakemake.log[0], "w")

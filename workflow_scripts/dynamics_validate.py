@@ -6,7 +6,7 @@ import torch
 
 from embodied_snap.dynamics import evaluate as E
 from embodied_snap.dynamics.model import load
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.windows import load_windows
 

@@ -4,7 +4,7 @@ import json
 import sys
 
 from embodied_snap.figures.limits import plot_limits
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

@@ -6,7 +6,7 @@ import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
-from embodied_snap.provenance import write_record
+from embodied_snap.lineage.records import write_record
 
 sys.stderr = open(snakemake.log[0], "w")
 started = datetime.now(timezone.utc).isoformat()

@@ -7,8 +7,9 @@ import numpy as np
 import pandas as pd
 import torch
 
+from embodied_snap.io import read_parquet
 from embodied_snap.policy import search, simulate
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -16,7 +17,7 @@ with tracked(snakemake):
     P, I = snakemake.params, snakemake.input
     sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m)
     run = json.load(open(I.run))
-    T = search.Targets(pd.read_parquet(I.evaluation), ws)
+    T = search.Targets(read_parquet(I.evaluation), ws)
     act = search.policy_actions(run["arch"], np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])
     df = search.outcomes(sim, act, T, run["arch"], run["seed"])
     print(df[["miss_m", "v_pk_mps", "reward"]].describe(), file=sys.stderr)

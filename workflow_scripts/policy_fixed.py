@@ -6,8 +6,9 @@ import numpy as np
 import pandas as pd
 import torch
 
+from embodied_snap.io import read_parquet
 from embodied_snap.policy import search, simulate
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -16,8 +17,8 @@ with tracked(snakemake):
     P, I = snakemake.params, snakemake.input
     sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m)
     prims = search.fixed_primitives(P.policy["fixed_primitives"], P.seed, P.policy["ranges"])
-    k, r = search.best_fixed(sim, prims, search.Targets(pd.read_parquet(I.selection), ws))
-    T = search.Targets(pd.read_parquet(I.evaluation), ws)
+    k, r = search.best_fixed(sim, prims, search.Targets(read_parquet(I.selection), ws))
+    T = search.Targets(read_parquet(I.evaluation), ws)
     act = {a: np.repeat(v, len(T)) for a, v in prims[k].items()}
     search.outcomes(sim, act, T, "fixed", -1).to_parquet(snakemake.output.eval, index=False)
     best = {a: float(v[0]) for a, v in prims[k].items()}

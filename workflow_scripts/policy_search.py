@@ -5,8 +5,9 @@ import sys
 import pandas as pd
 import torch
 
+from embodied_snap.io import read_parquet
 from embodied_snap.policy import search, simulate
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -14,10 +15,10 @@ with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     P, I = snakemake.params, snakemake.input
     sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m)
-    tr = pd.read_parquet(I.training)
+    tr = read_parquet(I.training)
     train = search.Targets(tr, ws)
     run = search.cmaes(sim, P.arch, P.seed, train, tr["generation"].to_numpy(),
-                       search.Targets(pd.read_parquet(I.selection), ws), search.feature_stats(train),
+                       search.Targets(read_parquet(I.selection), ws), search.feature_stats(train),
                        P.policy["ranges"], P.generations, P.popsize, P.policy["sigma0"])
     c = run["curve"]
     print(f"{P.arch} seed {P.seed}: held-out {c[0]['heldout_reward']:.3f} -> {c[-1]['heldout_reward']:.3f}, "

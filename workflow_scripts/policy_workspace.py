@@ -6,7 +6,7 @@ import numpy as np
 
 from embodied_snap.dynamics import data
 from embodied_snap.policy import targets
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")

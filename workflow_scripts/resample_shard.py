@@ -2,7 +2,7 @@
 
 import sys
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.resample import resample_shard
 from embodied_snap.validate import RecordingError
 

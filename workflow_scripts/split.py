@@ -4,7 +4,7 @@ import sys
 
 import pandas as pd
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

@@ -7,7 +7,7 @@ import sys
 
 import pandas as pd
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import group_paths, write_json
 from embodied_snap.twin.acquire import acquire_groups
 

@@ -4,7 +4,7 @@ import sys
 
 import pandas as pd
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.twin.phenomena import phenomena
 

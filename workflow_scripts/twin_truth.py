@@ -2,7 +2,7 @@
 
 import sys
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.twin.truth import truth
 

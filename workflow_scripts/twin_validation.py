@@ -3,7 +3,7 @@
 import json
 import sys
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.reference import twin_comparison
 

@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.validate import RecordingError, validate_index
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from embodied_snap.provenance import tracked
+from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
 from embodied_snap.validate import RecordingError, validate_shard
 

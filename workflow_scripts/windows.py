@@ -4,12 +4,13 @@ import sys
 
 import pandas as pd
 
-from embodied_snap.provenance import tracked
+from embodied_snap.io import read_parquet
+from embodied_snap.lineage.records import tracked
 from embodied_snap.windows import make_windows, save_windows
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    frames = pd.concat([pd.read_parquet(f) for f in snakemake.input.shards], ignore_index=True)
+    frames = pd.concat([read_parquet(f) for f in snakemake.input.shards], ignore_index=True)
     w = snakemake.params.w
     arrays = make_windows(
         frames,

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import pandas as pd
 
+from ..io import read_parquet
+
 from .. import rawformat as RF
 
 
 def group(raw_dir, gid: str) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     p = RF.group_paths(raw_dir, gid)
-    return pd.read_parquet(p["mocap"]), pd.read_parquet(p["servo"]), RF.read_meta(p["meta"])
+    return read_parquet(p["mocap"]), read_parquet(p["servo"]), RF.read_meta(p["meta"])
 
 
 def release_start(meta: dict) -> float:

@@ -6,11 +6,13 @@ import json
 
 import pandas as pd
 
+from ..io import read_parquet
+
 
 
 def frames(shards, groups=None) -> pd.DataFrame:
     """50 Hz frames of the given shards, optionally only some groups, sorted by group and time."""
-    f = pd.concat([pd.read_parquet(p) for p in shards], ignore_index=True)
+    f = pd.concat([read_parquet(p) for p in shards], ignore_index=True)
     if groups is not None:
         f = f[f.group_id.isin(set(groups))]
     return f.sort_values(["group_id", "t"], kind="stable").reset_index(drop=True)

@@ -18,7 +18,7 @@ from collections import deque
 from fnmatch import fnmatchcase
 from pathlib import Path
 
-from .provenance import SPLIT_CSV, TWIN_TRUTH, group_of, load_groups, load_records
+from .records import SPLIT_CSV, TWIN_TRUTH, group_of, load_groups, load_records
 
 # --- The policy: DESIGN.md section 3 as data. The one place to change what may feed what. -------
 #
@@ -381,13 +381,13 @@ def _window_violations(root: Path, groups: dict) -> tuple[list[str], int]:
 
 
 def _target_violations(root: Path) -> tuple[list[str], int]:
-    import pandas as pd
+    from ..io import read_parquet
 
     sets = {}
     for name in TARGET_SETS:
         p = root / f"results/policy/targets_{name}.parquet"
         if p.exists():
-            df = pd.read_parquet(p)
+            df = read_parquet(p)
             if "target_id" in df:
                 sets[name] = {str(x) for x in df["target_id"]}
             else:  # positions, rounded below any meaningful precision (1 nm)

@@ -16,8 +16,8 @@ from pathlib import Path
 
 from prov.model import ProvDocument
 
-from .provenance import group_of, load_groups, load_records
-from .separation import POLICY
+from .records import group_of, load_groups, load_records
+from .checks import POLICY
 
 NAMESPACES = {
     "esnap": "urn:embodied-snap:ns#",  # attributes and types of this project

@@ -19,8 +19,8 @@ import time
 from collections import deque
 from pathlib import Path
 
-from .provenance import group_of, load_groups, load_records, sha256
-from .separation import is_gate, label
+from .records import group_of, load_groups, load_records, sha256
+from .checks import is_gate, label
 
 
 def _norm(result: str, root: Path) -> str:
