@@ -69,10 +69,30 @@ def cmd_validate(a) -> int:
     return 0
 
 
+def _run_config(a) -> dict | None:
+    """The config named on the command line, as Snakemake takes it (--configfile, then --config
+    KEY=VALUE with YAML values); None when neither is given (then: the last run's, from the records)."""
+    if not a.config and not a.configfile:
+        return None
+    cfg = _config(Path(a.root) / (a.configfile or "config.yaml"), None)
+    for kv in a.config or []:
+        key, sep, val = kv.partition("=")
+        if not sep:
+            raise SystemExit(f"esnap: --config {kv}: expected KEY=VALUE")
+        cfg[key] = yaml.safe_load(val)
+    return cfg
+
+
+def _config_args(sp) -> None:
+    sp.add_argument("--configfile", help="the run's config file (default with --config: config.yaml)")
+    sp.add_argument("--config", nargs="+", metavar="KEY=VALUE",
+                    help="config overrides as for snakemake (default: the config the last run recorded)")
+
+
 def cmd_audit(a) -> int:
     from .lineage.audit import audit, format_audit
 
-    report = audit(a.result, root=a.root)
+    report = audit(a.result, root=a.root, config=_run_config(a))
     print(json.dumps(report, indent=1, default=str) if a.json else format_audit(report))
     return 1 if report.get("stale") else 0
 
@@ -80,7 +100,7 @@ def cmd_audit(a) -> int:
 def cmd_check_separation(a) -> int:
     from .lineage.checks import check
 
-    res = check(a.root, static=not a.no_static, records=not a.no_records)
+    res = check(a.root, static=not a.no_static, records=not a.no_records, config_overrides=_run_config(a))
     for v in res["violations"]:
         print(f"leak: {v}")
     print("separation holds" if res["ok"] else f"{len(res['violations'])} separation violation(s)")
@@ -115,9 +135,11 @@ def main(argv: list[str] | None = None) -> int:
     au.add_argument("result")
     au.add_argument("--root", default=".")
     au.add_argument("--json", action="store_true")
+    _config_args(au)
     au.set_defaults(fn=cmd_audit)
 
-    cs = sub.add_parser("check-separation", help="prove the evidence-set separation (DESIGN section 3)")
+    cs = sub.add_parser("check-separation", help="prove the evidence-set separation (docs/design.md section 3)")
+    _config_args(cs)
     cs.add_argument("--root", default=".")
     cs.add_argument("--no-static", action="store_true", help="skip the Snakemake DAG check")
     cs.add_argument("--no-records", action="store_true", help="skip the provenance-record check")

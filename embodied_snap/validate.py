@@ -1,4 +1,4 @@
-"""Validation of raw recordings against the rig format (DESIGN.md section 2, rawformat.py).
+"""Validation of raw recordings against the rig format (docs/design.md section 2, rawformat.py).
 
 Table checks are pandera schemas, one per file; what spans files (meta.json against its folder
 and index.csv, the servo log covering the mocap, row counts) is checked in plain code after them.

@@ -1,9 +1,11 @@
-# Acquisition on the simulated rig (DESIGN section 6): raw_data/ is written here, group by group.
+# Acquisition on the simulated rig (docs/design.md section 6): raw_data/ is written here, group by group.
 # Recordings are source data: the protocol writes a group's files once, read-only, and never
 # overwrites them; a changed recording reruns only what reads it.
 
 
 checkpoint twin_acquire:
+    input:
+        code=imports("twin_acquire"),
     output:
         "results/twin/acquired/{shard}.json",
     log:
@@ -23,7 +25,8 @@ checkpoint twin_acquire:
 
 rule twin_index:
     input:
-        ancient(expand("results/twin/acquired/{shard}.json", shard=SHARDS)),
+        acquired=ancient(expand("results/twin/acquired/{shard}.json", shard=SHARDS)),
+        code=imports("twin_index"),
     output:
         protected(f"{RAW}/index.csv"),
     log:
@@ -35,6 +38,8 @@ rule twin_index:
 
 
 rule twin_truth:
+    input:
+        code=imports("twin_truth"),
     output:
         protected(f"{RAW}/twin_truth.json"),
     log:
@@ -56,7 +61,7 @@ rule twin_phenomena:
     input:
         raw=raw_of(evidence_set=PHENOMENA_SETS),
         valid=validated(evidence_set=PHENOMENA_SETS),
-        code=code("twin/phenomena", "characterize/load", "characterize/mocap", "quat"),
+        code=imports("twin_phenomena"),
     output:
         "results/twin/phenomena.json",
     log:
@@ -83,7 +88,7 @@ rule twin_validation:
         kinematics="results/characterize/kinematics.json",
         servo="results/characterize/servo.json",
         reference="reference/paper_values.yaml",
-        code=code("reference"),
+        code=imports("twin_validation"),
     output:
         "results/twin/validation.json",
     log:

@@ -1,4 +1,4 @@
-# Hardware characterisation (paper section III and V-C; DESIGN section 4, step 4): one rule and one
+# Hardware characterisation (paper section III and V-C; docs/design.md section 4, step 4): one rule and one
 # artifact per fit. Inputs are exactly the recordings a fit may see (raw_of), the validation
 # records of their shards, and the package modules the fit imports (code), so the DAG shows what
 # fed each number.
@@ -10,13 +10,6 @@ CAL = dict(evidence_set="servo_calibration")
 CAL_GROUPS = sorted(select(**CAL).group_id)
 HELD_GROUPS = sorted(select(evidence_set="held_base").group_id)
 SNAP_GROUPS = dict(evidence_set="dynamics", category="characterisation", role="train")
-TRIALS = (
-    "characterize/trials",
-    "characterize/mocap",
-    "quat",
-    "characterize/load",
-    "rawformat",
-)
 
 
 rule characterize_kinematics:
@@ -24,13 +17,7 @@ rule characterize_kinematics:
     input:
         raw=raw_of(**CAL),
         valid=validated(**CAL),
-        code=code(
-            "characterize/kinematics",
-            "characterize/mocap",
-            "quat",
-            "characterize/load",
-            "rawformat",
-        ),
+        code=imports("characterize_kinematics"),
     output:
         f"{CHAR}/kinematics.json",
     log:
@@ -54,8 +41,8 @@ rule characterize_servo:
         raw=raw_of(**CAL),
         valid=validated(**CAL),
         kinematics=f"{CHAR}/kinematics.json",
-        code=code("characterize/servo", "characterize/load", "rawformat", "reference"),
         reference="reference/paper_values.yaml",
+        code=imports("characterize_servo"),
     output:
         f"{CHAR}/servo.json",
     log:
@@ -77,7 +64,7 @@ rule characterize_release:
         raw=raw_of(evidence_set="release_mode"),
         valid=validated(evidence_set="release_mode"),
         servo=f"{CHAR}/servo.json",
-        code=code("characterize/release", *TRIALS),
+        code=imports("characterize_release"),
     output:
         f"{CHAR}/release.json",
     log:
@@ -100,7 +87,7 @@ rule characterize_attachment:
     input:
         raw=raw_of(evidence_set="attachment"),
         valid=validated(evidence_set="attachment"),
-        code=code("characterize/attachment", *TRIALS),
+        code=imports("characterize_attachment"),
     output:
         f"{CHAR}/attachment.json",
     log:
@@ -124,7 +111,7 @@ rule characterize_snap:
     input:
         raw=raw_of(**SNAP_GROUPS),
         valid=validated(**SNAP_GROUPS),
-        code=code("characterize/snap", "characterize/attachment", *TRIALS),
+        code=imports("characterize_snap"),
     output:
         f"{CHAR}/snap.json",
     log:
@@ -147,7 +134,7 @@ rule characterize_delay_sweep:
     input:
         raw=raw_of(evidence_set="delay_sweep"),
         valid=validated(evidence_set="delay_sweep"),
-        code=code("characterize/delay", *TRIALS),
+        code=imports("characterize_delay_sweep"),
     output:
         f"{CHAR}/delay_sweep.json",
     log:
@@ -169,14 +156,7 @@ rule characterize_heldbase:
         raw=raw_of(evidence_set="held_base"),
         valid=validated(evidence_set="held_base"),
         servo=f"{CHAR}/servo.json",
-        code=code(
-            "characterize/heldbase",
-            "characterize/servo",
-            "characterize/mocap",
-            "quat",
-            "characterize/load",
-            "rawformat",
-        ),
+        code=imports("characterize_heldbase"),
     output:
         f"{CHAR}/heldbase.json",
     log:
@@ -208,7 +188,7 @@ rule table_characterize_claims:
         delay_sweep=f"{CHAR}/delay_sweep.json",
         heldbase=f"{CHAR}/heldbase.json",
         reference="reference/paper_values.yaml",
-        code=code("characterize/claims", "reference"),
+        code=imports("characterize_claims"),
     output:
         f"{CHAR}/claims.csv",
     log:
@@ -226,7 +206,7 @@ rule fig_limits:
         servo=f"{CHAR}/servo.json",
         release=f"{CHAR}/release.json",
         attachment=f"{CHAR}/attachment.json",
-        code=code("figures/limits", "figures/style", "characterize/attachment"),
+        code=imports("fig_limits"),
     output:
         pdf="results/figs/fig2_limits.pdf",
         png=report(
@@ -249,7 +229,7 @@ rule fig_snap:
     input:
         snap=f"{CHAR}/snap.json",
         delay_sweep=f"{CHAR}/delay_sweep.json",
-        code=code("figures/snap", "figures/style"),
+        code=imports("fig_snap"),
     output:
         pdf="results/figs/fig3_snap.pdf",
         png=report(

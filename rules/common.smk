@@ -4,6 +4,7 @@ import sys
 # The package beside the Snakefile, installed or not.
 sys.path.insert(0, workflow.basedir)
 
+from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import group_paths
 
@@ -23,10 +24,11 @@ ROLE_SHARDS = {
 }
 
 
-def code(*modules):
-    """Package modules as inputs, so that editing one reruns exactly the jobs that import it
-    (Snakemake itself tracks only a job's own script)."""
-    return [f"embodied_snap/{m}.py" for m in modules]
+def imports(script):
+    """Code inputs of a rule: the package modules workflow_scripts/<script>.py imports,
+    transitively (read from the sources, never typed), so that editing a module reruns exactly
+    the jobs that reach it. Snakemake itself tracks only a job's own script."""
+    return code_inputs(f"workflow_scripts/{script}.py", workflow.basedir)
 
 
 def group_files(gids):

@@ -1,5 +1,5 @@
 # Raw recordings -> validated manifest -> 50 Hz state/command series -> group split and windows
-# (DESIGN section 4, steps 2-3; paper section IV-A).
+# (docs/design.md section 4, steps 2-3; paper section IV-A).
 
 
 rule validate_shard:
@@ -7,7 +7,7 @@ rule validate_shard:
     input:
         raw=shard_raw,
         index=ancient(raw_index()),
-        code=code("validate", "rawformat"),
+        code=imports("validate_shard"),
     output:
         "results/raw/shards/{shard}.json",
     log:
@@ -26,8 +26,9 @@ rule validate_index:
     """index.csv against the group folders: unique ids, known sets, no row without files or files without row."""
     input:
         index=raw_index(),
+        raw=raw_of(),
         shards=ancient(expand("results/raw/shards/{shard}.json", shard=SHARDS)),
-        code=code("validate", "rawformat"),
+        code=imports("validate_index"),
     output:
         "results/raw/index_check.json",
     log:
@@ -43,6 +44,7 @@ rule raw_manifest:
     input:
         index="results/raw/index_check.json",
         shards=expand("results/raw/shards/{shard}.json", shard=SHARDS),
+        code=imports("raw_manifest"),
     output:
         "results/raw/manifest.json",
     log:
@@ -58,7 +60,7 @@ rule resample_shard:
     input:
         raw=shard_raw,
         valid="results/raw/shards/{shard}.json",
-        code=code("resample", "quat", "validate", "rawformat"),
+        code=imports("resample_shard"),
     output:
         "results/data/50hz/{shard}.parquet",
     log:
@@ -79,7 +81,7 @@ rule resample_shard:
 rule split:
     """440/78/20 by acquisition group, seeded; depends on the group list alone."""
     input:
-        code=code("plan"),
+        code=imports("split"),
     output:
         "results/splits/split.csv",
     log:
@@ -103,7 +105,7 @@ rule windows:
             "results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS[wc.role]
         ),
         split="results/splits/split.csv",
-        code=code("windows"),
+        code=imports("windows"),
     output:
         "results/splits/windows_{role}.npz",
     log:

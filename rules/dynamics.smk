@@ -1,4 +1,4 @@
-# Dynamics model (paper IV-A; DESIGN section 4, step 5): the GRU ensemble of Eq. 3-4, the
+# Dynamics model (paper IV-A; docs/design.md section 4, step 5): the GRU ensemble of Eq. 3-4, the
 # persistence baseline, validation errors, one sealed evaluation, the delay-sweep gate, the hold
 # model, Fig. 4 and results/dynamics/claims.csv. Training and model selection see the train and
 # validation windows only; windows_sealed.npz reaches dynamics_sealed_eval alone, after selection.
@@ -8,11 +8,6 @@ DCFG = config["dynamics"]
 DSEEDS = DCFG["seeds"]
 DMODELS = expand(f"{DYN}/models/seed{{seed}}.pt", seed=DSEEDS)
 DVALID = expand(f"{DYN}/validation/seed{{seed}}.json", seed=DSEEDS)
-DYN_CODE = (
-    "dynamics/model",
-    "dynamics/train",
-    "dynamics/evaluate",
-)  # evaluate imports train
 SWEEP = dict(evidence_set="delay_sweep")
 HOLD = dict(evidence_set="dynamics", role="train")
 SWEEP_SHARDS = sorted(PLAN[PLAN.evidence_set == "delay_sweep"].shard.unique())
@@ -30,7 +25,7 @@ rule dynamics_train:
     input:
         train="results/splits/windows_train.npz",
         validation="results/splits/windows_validation.npz",
-        code=code("dynamics/model", "dynamics/train"),
+        code=imports("dynamics_train"),
     output:
         model=f"{DYN}/models/seed{{seed}}.pt",
         curve=f"{DYN}/models/seed{{seed}}_curve.csv",
@@ -57,7 +52,7 @@ rule dynamics_persistence:
     """Persistence baseline x_hat_{t+h} = x_t on the validation windows, h = 1..35."""
     input:
         validation="results/splits/windows_validation.npz",
-        code=code(*DYN_CODE),
+        code=imports("dynamics_persistence"),
     output:
         f"{DYN}/validation/persistence.json",
     log:
@@ -73,7 +68,7 @@ rule dynamics_validate:
     input:
         model=f"{DYN}/models/seed{{seed}}.pt",
         validation="results/splits/windows_validation.npz",
-        code=code(*DYN_CODE),
+        code=imports("dynamics_validate"),
     output:
         f"{DYN}/validation/seed{{seed}}.json",
     log:
@@ -92,7 +87,7 @@ rule dynamics_sealed_eval:
         models=DMODELS,
         selected=DVALID,
         sealed="results/splits/windows_sealed.npz",
-        code=code(*DYN_CODE),
+        code=imports("dynamics_sealed_eval"),
     output:
         f"{DYN}/sealed/eval.json",
     log:
@@ -113,7 +108,7 @@ rule dynamics_gate:
         models=DMODELS,
         shards=expand("results/data/50hz/{shard}.parquet", shard=SWEEP_SHARDS),
         metas=lambda wc: [f for f in raw_of(**SWEEP)(wc) if f.endswith("meta.json")],
-        code=code("dynamics/gate", "dynamics/hold", "dynamics/data", "dynamics/model"),
+        code=imports("dynamics_gate"),
     output:
         f"{DYN}/gate.json",
     log:
@@ -133,7 +128,7 @@ rule dynamics_hold:
     input:
         shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
         metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
-        code=code("dynamics/hold", "dynamics/data", "dynamics/model", "bearing"),
+        code=imports("dynamics_hold"),
     output:
         bank=f"{DYN}/hold_bank.npz",
         summary=f"{DYN}/hold.json",
@@ -156,7 +151,7 @@ rule table_dynamics_claims:
         gate=f"{DYN}/gate.json",
         hold=f"{DYN}/hold.json",
         reference="reference/paper_values.yaml",
-        code=code("dynamics/claims", "reference"),
+        code=imports("dynamics_claims"),
     output:
         f"{DYN}/claims.csv",
     log:
@@ -173,7 +168,7 @@ rule fig_gates:
         persistence=f"{DYN}/validation/persistence.json",
         validation=DVALID,
         gate=f"{DYN}/gate.json",
-        code=code("figures/gates", "figures/style"),
+        code=imports("fig_gates"),
     output:
         pdf="results/figs/fig4_gates.pdf",
         png=report(

@@ -1,17 +1,22 @@
-# Lineage (DESIGN section 5): the separation proof runs before any table or figure is published.
+# Lineage (docs/design.md section 5): the separation proof runs before any table or figure is published.
 
 
 rule check_separation:
-    """DESIGN section 3, proved on the DAG and on the provenance records."""
+    """docs/design.md section 3, proved on the DAG and on the provenance records."""
     input:
+        index=raw_index(),
         split="results/splits/split.csv",
         windows=expand("results/splits/windows_{role}.npz", role=ROLE_SHARDS),
         manifest="results/raw/manifest.json",
+        targets=expand(
+            "results/policy/targets_{name}.parquet",
+            name=("training", "selection", "evaluation"),
+        ),
         # the claims tables come after every model, policy and target set: all records exist
         claims=expand(
             "results/{stage}/claims.csv", stage=("characterize", "dynamics", "policy")
         ),
-        code=code("lineage/checks", "lineage/records"),
+        code=imports("check_separation"),
     output:
         "results/lineage/separation.json",
     log:
@@ -29,12 +34,16 @@ rule prov_export:
     input:
         "results/lineage/separation.json",
         "results/figures",
-        code=code("lineage/prov", "lineage/checks", "lineage/records"),
+        index=raw_index(),
+        split="results/splits/split.csv",
+        code=imports("prov_export"),
     output:
         "results/lineage/prov.json",
     log:
         "logs/prov_export.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        raw=lambda wc, input: os.path.dirname(input.index),
     script:
         "../workflow_scripts/prov_export.py"

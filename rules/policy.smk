@@ -1,4 +1,4 @@
-# Policy search (paper IV-B, IV-C, V-A, V-B; DESIGN section 4, step 6): the workspace and target
+# Policy search (paper IV-B, IV-C, V-A, V-B; docs/design.md section 4, step 6): the workspace and target
 # sets, one CMA-ES job per architecture x seed, the selected policies on the 400 evaluation
 # targets, the best fixed primitive, the analyses, Fig. 5 and results/policy/claims.csv.
 # Evaluation targets are read only by policy_evaluate and policy_fixed (esnap check-separation).
@@ -17,20 +17,6 @@ SIMULATOR = dict(
     snap="results/characterize/snap.json",
     workspace=f"{POL}/workspace.json",
 )
-SIM_CODE = code(
-    "policy/simulate",
-    "policy/reward",
-    "policy/actions",
-    "policy/networks",
-    "policy/geometry",
-    "policy/search",
-    "bearing",
-    "dynamics/rollout",
-    "dynamics/hold",
-    "dynamics/model",
-    "characterize/snap",
-    "twin/protocols",
-)
 SIM_PARAMS = dict(
     policy=PCFG, after_s1=DCFG["after_s1_s"], ee_m=config["rig"]["end_effector_m"]
 )
@@ -46,7 +32,7 @@ rule policy_workspace:
         shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
         metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
         bank=f"{DYN}/hold_bank.npz",
-        code=code("policy/targets", "dynamics/hold", "dynamics/data", "bearing"),
+        code=imports("policy_workspace"),
     output:
         f"{POL}/workspace.json",
     log:
@@ -65,7 +51,7 @@ rule policy_targets:
     """Training (per generation), selection and evaluation targets, each set from its own seed."""
     input:
         workspace=f"{POL}/workspace.json",
-        code=code("policy/targets", "bearing"),
+        code=imports("policy_targets"),
     output:
         training=f"{POL}/targets_training.parquet",
         selection=f"{POL}/targets_selection.parquet",
@@ -94,7 +80,7 @@ rule policy_search:
         **SIMULATOR,
         training=f"{POL}/targets_training.parquet",
         selection=f"{POL}/targets_selection.parquet",
-        code=SIM_CODE,
+        code=imports("policy_search"),
     output:
         f"{POL}/runs/{{arch}}_seed{{seed}}.json",
     log:
@@ -120,7 +106,7 @@ rule policy_evaluate:
         **SIMULATOR,
         run=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
         evaluation=f"{POL}/targets_evaluation.parquet",
-        code=SIM_CODE,
+        code=imports("policy_evaluate"),
     output:
         f"{POL}/eval/{{arch}}_seed{{seed}}.parquet",
     log:
@@ -140,7 +126,7 @@ rule policy_fixed:
         **SIMULATOR,
         selection=f"{POL}/targets_selection.parquet",
         evaluation=f"{POL}/targets_evaluation.parquet",
-        code=SIM_CODE,
+        code=imports("policy_fixed"),
     output:
         eval=f"{POL}/eval/fixed.parquet",
         summary=f"{POL}/fixed.json",
@@ -167,7 +153,7 @@ rule policy_summary:
         runs=POLICY_RUNS,
         evals=POLICY_EVALS,
         fixed=f"{POL}/eval/fixed.parquet",
-        code=code("policy/analysis"),
+        code=imports("policy_summary"),
     output:
         f"{POL}/summary.json",
     log:
@@ -189,7 +175,7 @@ rule fig_benchmark:
     """Fig. 5: held-out reward over evaluations, attachment over tolerance, evaluations to reach."""
     input:
         summary=f"{POL}/summary.json",
-        code=code("figures/benchmark", "figures/style"),
+        code=imports("fig_benchmark"),
     output:
         pdf="results/figs/fig5_benchmark.pdf",
         png=report(
@@ -210,7 +196,7 @@ rule table_policy_claims:
     input:
         summary=f"{POL}/summary.json",
         reference="reference/paper_values.yaml",
-        code=code("policy/claims", "reference"),
+        code=imports("policy_claims"),
     output:
         f"{POL}/claims.csv",
     log:

@@ -14,7 +14,7 @@ rule fig_data_overview:
     """The recordings at a glance: groups per evidence set and session, durations, tracking."""
     input:
         manifest="results/raw/manifest.json",
-        code=code("figures/overview", "figures/style"),
+        code=imports("fig_data_overview"),
     output:
         pdf="results/figs/fig0_data_overview.pdf",
         png=report(
@@ -35,6 +35,7 @@ rule figures:
     input:
         figs=expand("results/figs/{fig}.{ext}", fig=FIGURES, ext=("pdf", "png")),
         separation="results/lineage/separation.json",
+        code=imports("figures"),
     output:
         directory("results/figures"),
     log:

@@ -8,7 +8,7 @@ def write(root, rel, data=b"x"):
     return rel
 
 
-def group_files(root, gid):
+def group_files(root, gid, raw="raw_data"):
     """A raw group's three files (not valid recordings: lineage only looks at paths and hashes)."""
-    return [write(root, f"raw_data/groups/{gid}/{f}", f"{gid}/{f}".encode())
+    return [write(root, f"{raw}/groups/{gid}/{f}", f"{gid}/{f}".encode())
             for f in ("mocap.parquet", "servo.parquet", "meta.json")]

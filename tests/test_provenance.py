@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import pytest
 from snakemake.iocontainers import Namedlist
 
+from embodied_snap.lineage import groups
 from embodied_snap.lineage import records as pv
 
 
@@ -65,7 +66,7 @@ def test_tracked_writes_on_success_and_removes_old_on_failure(tmp_path, monkeypa
                {"role": "train"}, {"history": 20})
     _write(tmp_path, "embodied_snap/plan.py", b"# plan")
     rp = tmp_path / "results/provenance/windows/role=train.json"
-    with pv.tracked(smk, root=tmp_path):
+    with pv.tracked(smk, root=tmp_path, check_modules=False):
         assert not rp.exists()
         _write(tmp_path, "results/splits/windows_train.npz", b"npz")
     rec = json.loads(rp.read_text())
@@ -73,7 +74,7 @@ def test_tracked_writes_on_success_and_removes_old_on_failure(tmp_path, monkeypa
     assert [e["path"] for e in rec["code"]] == ["embodied_snap/plan.py", "workflow_scripts/windows.py"]
     # a failing job deletes the old record and writes none
     with pytest.raises(RuntimeError):
-        with pv.tracked(smk, root=tmp_path):
+        with pv.tracked(smk, root=tmp_path, check_modules=False):
             raise RuntimeError("boom")
     assert not rp.exists()
 
@@ -85,16 +86,16 @@ def test_load_records_and_groups(tmp_path):
     recs = pv.load_records(tmp_path)
     assert set(recs) == {"results/o.parquet"}
     assert recs["results/o.parquet"]["_record"] == "results/provenance/resample_shard/shard=s-00.json"
-    assert pv.group_of("raw_data/groups/dyn_0001/meta.json") == ("dyn_0001", "meta.json")
-    assert pv.group_of("results/raw/manifest.json") is None
+    assert groups.group_of("raw_data/groups/dyn_0001/meta.json") == ("dyn_0001", "meta.json")
+    assert groups.group_of("results/raw/manifest.json") is None
     _write(tmp_path, "raw_data/index.csv",
            b"group_id,evidence_set,category,session\ndyn_0001,dynamics,sealed,s01\ndyn_0002,dynamics,pilot,s01\n"
            b"dly_0001,delay_sweep,sweep,s02\n")
-    g = pv.load_groups(tmp_path)
+    g = groups.load_groups(tmp_path)
     assert g["dyn_0001"]["role"] == "sealed" and g["dyn_0002"]["role"] == "dynamics"
     assert g["dly_0001"]["role"] == "delay_sweep"
     _write(tmp_path, "results/splits/split.csv", b"group_id,role\ndyn_0002,validation\n")
-    assert pv.load_groups(tmp_path)["dyn_0002"]["role"] == "validation"
+    assert groups.load_groups(tmp_path)["dyn_0002"]["role"] == "validation"
 
 
 def test_tracked_inside_snakemake(tmp_path):

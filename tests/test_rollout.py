@@ -7,12 +7,10 @@ from embodied_snap.dynamics.model import TIP, Dynamics, norm_stats
 from embodied_snap.dynamics.rollout import Ensemble
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 
-from test_dynamics import synthetic_frames
-
 torch.set_num_threads(1)
 
 
-def members(n=3):
+def members(synthetic_frames, n=3):
     f = synthetic_frames(n_groups=3, n=200)
     X, U = f[STATE_COLUMNS].to_numpy(np.float32), f[COMMAND_COLUMNS].to_numpy(np.float32)
     stats = norm_stats(X, U, f.group_id.to_numpy())
@@ -25,8 +23,8 @@ def members(n=3):
     return ms, X, U
 
 
-def test_long_horizon_and_states_equal_each_model():
-    ms, X, U = members()
+def test_long_horizon_and_states_equal_each_model(synthetic_frames):
+    ms, X, U = members(synthetic_frames)
     ens = Ensemble(models=ms, device="cpu")
     for horizon in (1, 72):  # policy search rolls out ~72 steps; 1 is the loop's edge
         a = 30 + 3 * np.arange(12)
@@ -45,8 +43,8 @@ def test_long_horizon_and_states_equal_each_model():
     assert "states" not in ens.rollout(xs, us, 1)
 
 
-def test_mean_and_disagreement():
-    ms, X, U = members()
+def test_mean_and_disagreement(synthetic_frames):
+    ms, X, U = members(synthetic_frames)
     a = 40 + np.arange(5)
     xs, us = X[a[:, None] + np.arange(-20, 1)], U[a[:, None] + np.arange(-19, 25 + 5)]
     out = Ensemble(models=ms, device="cpu").rollout(xs, us)

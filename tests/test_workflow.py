@@ -18,6 +18,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from embodied_snap.lineage.dag import rule_table
+
+from importprobe import loaded_by_scripts
+
 REPO = Path(__file__).resolve().parent.parent
 COPY = ["Snakefile", "config.yaml", "rules", "workflow_scripts", "schemas", "envs", "profiles",
         "reference", "report", "embodied_snap"]
@@ -121,17 +125,66 @@ def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
     assert dry_jobs(wf, "all") == []
 
 
-def test_editing_a_module_reruns_exactly_the_rules_that_import_it(wf):
-    m = wf / "embodied_snap/dynamics/gate.py"
-    m.write_text(m.read_text() + "\n# edited\n")
-    assert dry_jobs(wf, "results/figures") == sorted([
-        ("dynamics_gate", ""),
-        ("fig_gates", ""),
-        ("table_dynamics_claims", ""),
-        ("check_separation", ""),
-        ("figures", ""),
-    ])
+def dry_reasons(cwd, *targets) -> dict[tuple[str, str], str]:
+    """{(rule, wildcards): reason} of every job a dry run would execute."""
+    out = snakemake(cwd, "-n", *targets).stdout
+    jobs, key = {}, None
+    for line in out.splitlines():
+        line = line.strip()
+        m = re.match(r"^(?:local)?(?:rule|checkpoint) (\w+):", line)
+        if m:
+            key = [m.group(1), ""]
+        elif key and line.startswith("wildcards: "):
+            key[1] = line.removeprefix("wildcards: ")
+        elif key and line.startswith("reason: "):
+            jobs[tuple(key)] = line.removeprefix("reason: ")
+            key = None
+    return jobs
+
+
+@pytest.mark.parametrize("module", ["embodied_snap/twin/protocols.py", "embodied_snap/rawformat.py",
+                                    "embodied_snap/figures/gates.py"])
+def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, module):
+    """Which rules' scripts load the module is found by Python's import machinery; the dry run must
+    rerun exactly those for the edit, and every other job only because an input is rebuilt."""
+    loads = loaded_by_scripts(wf)
+    table = rule_table(wf, config_overrides={"budget": "smoke"})
+    expected = {r for r, d in table.items() if d["script"] and module in loads[d["script"]]}
+    assert expected
+    m = wf / module
+    keep, st = m.read_bytes(), m.stat()
+    m.write_bytes(keep + b"\n# edited\n")
+    try:
+        jobs = dry_reasons(wf, "all")
+    finally:
+        m.write_bytes(keep)
+        os.utime(m, ns=(st.st_atime_ns, st.st_mtime_ns))
+    edited = {rule for (rule, _), why in jobs.items() if "Updated input files:" in why and module in why}
+    assert edited == expected
+    others = {k: why for k, why in jobs.items() if k[0] not in expected}
+    assert all(why.startswith("Input files updated by another job") for why in others.values()), others
+    assert dry_jobs(wf, "all") == []
+
+
+def test_an_undeclared_read_of_sealed_windows_fails_the_job(wf):
+    """A script that computes the persistence errors on the sealed windows without declaring them
+    is stopped by its own provenance check, with one line, before it vouches for anything."""
+    script = wf / "workflow_scripts/dynamics_persistence.py"
+    keep, st = script.read_bytes(), script.stat()
+    script.write_bytes(keep.replace(b"load_windows(snakemake.input.validation)",
+                                    b'load_windows("results/splits/windows_sealed.npz")'))
+    try:
+        r = snakemake(wf, "results/dynamics/validation/persistence.json", check=False)
+        assert r.returncode != 0
+        lines = sorted({ln for ln in (r.stdout + r.stderr).splitlines() if ln.startswith("error:")})
+        assert lines == ["error: results/splits/windows_sealed.npz: read by rule dynamics_persistence but not among "
+                         "its declared inputs (rule: a job reads only what it declares)"]
+        assert not (wf / "results/provenance/dynamics_persistence/_.json").exists()
+    finally:
+        script.write_bytes(keep)
+        os.utime(script, ns=(st.st_atime_ns, st.st_mtime_ns))
     snakemake(wf, "all")
+    assert dry_jobs(wf, "all") == []
 
 
 def test_injected_leak_is_caught(wf):

@@ -7,4 +7,4 @@ from embodied_snap.lineage.prov import export
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    export(".", snakemake.output[0])
+    export(".", snakemake.output[0], raw=snakemake.params.raw)

@@ -8,5 +8,5 @@ from embodied_snap.rawformat import write_index
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    rows = [r for f in snakemake.input for r in json.load(open(f))["groups"]]
+    rows = [r for f in snakemake.input.acquired for r in json.load(open(f))["groups"]]
     write_index(rows, snakemake.output[0])

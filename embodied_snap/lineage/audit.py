@@ -3,7 +3,7 @@
 Answers from the provenance records alone (no Snakemake, no pandas, so it stays fast): walk from
 RESULT's record through the records of the jobs that wrote its inputs down to raw group files.
 Every job that wrote an input is descended (the raw manifest too: a figure of the manifest was fed
-by every recording), except the gates (separation.GATES: the separation proof and the PROV export),
+by every recording), except the gates (policy.GATES: the separation proof and the PROV export),
 which reports list as inputs only to run after them; they are listed in the chain, not descended.
 
 Stale: a file whose recorded sha256 no longer matches the disk. Size and mtime_ns are compared
@@ -19,8 +19,9 @@ import time
 from collections import deque
 from pathlib import Path
 
-from .records import group_of, load_groups, load_records, sha256
-from .checks import is_gate, label
+from .groups import group_of, load_groups
+from .policy import GATES, label
+from .records import last_config, load_records, raw_dir_of, sha256
 
 
 def _norm(result: str, root: Path) -> str:
@@ -55,17 +56,20 @@ class _Disk:
         return None if self.hash[p] == e["sha256"] else "sha256 changed"
 
 
-def audit(result: str, root=".") -> dict:
+def audit(result: str, root=".", config: dict | None = None) -> dict:
+    """`config`: the run's config (default: the one the last run recorded), for the raw directory."""
     t0 = time.perf_counter()
     root = Path(root)
+    raw = raw_dir_of(config if config is not None else last_config(root))
     result = _norm(result, root)
     records = load_records(root)
     starts = [result] if result in records else sorted(p for p in records if p.startswith(result + "/"))
-    groups_idx = load_groups(root)
+    groups_idx = load_groups(root, raw)
     disk = _Disk(root)
 
     jobs, seen_rec, seen_path = [], set(), set(starts)
-    fed: dict[str, dict] = {}  # group -> {file name: sha256}
+    fed: dict[str, dict] = {}  # group -> {file name: sha256}, the files a job really read
+    unread: dict[str, dict] = {}  # groups a job was given (declared) but did not read
     other_sources: dict[str, str] = {}  # source files that are not recordings (index, reference values)
     missing, stale = [], []
     todo = deque(starts)
@@ -80,7 +84,7 @@ def audit(result: str, root=".") -> dict:
         if rec["_record"] in seen_rec:
             continue
         seen_rec.add(rec["_record"])
-        gate = is_gate(rec["rule"])
+        gate = rec["rule"] in GATES
         jobs.append(dict(label=label(rec["rule"], rec.get("wildcards", {})), rule=rec["rule"],
                          wildcards=rec.get("wildcards", {}), record=rec["_record"],
                          finished=rec.get("finished"), code_version=rec.get("code_version"),
@@ -93,11 +97,15 @@ def audit(result: str, root=".") -> dict:
                 stale.append(dict(path=e["path"], why=why, record=rec["_record"]))
         if gate:
             continue
+        # What the job really read (records before reads were recorded: every input).
+        reads = set(rec["reads"]) if rec.get("reads") is not None else None
         for e in rec.get("inputs", []):
             q = e["path"]
-            go = group_of(q)
+            go = group_of(q, raw)
             if go:
-                fed.setdefault(go[0], {})[go[1]] = e["sha256"]
+                (fed if reads is None or q in reads else unread).setdefault(go[0], {})[go[1]] = e["sha256"]
+            elif reads is not None and q not in reads and not any(r.startswith(q + "/") for r in reads):
+                continue  # declared only to run after it (a validation record): not lineage
             elif not q.startswith("results/"):
                 # Only results/ is derived; anything else (raw_data/index.csv, reference/*.yaml) is a
                 # source: a leaf, already checked against its recorded hash above.
@@ -133,6 +141,7 @@ def audit(result: str, root=".") -> dict:
         evidence_sets=dict(sorted(sets.items(), key=lambda kv: (-kv[1]["n_fed"], kv[0]))),
         not_fed=sorted(k for k, s in sets.items() if s["n_fed"] == 0),
         n_groups_fed=len(fed),
+        given_unread=sorted(set(unread) - set(fed)),
         other_sources=dict(sorted(other_sources.items())),
         jobs=jobs,
         elapsed_s=round(time.perf_counter() - t0, 3),
@@ -186,6 +195,8 @@ def format_audit(report: dict, hashes: bool = False) -> str:
         if hashes:
             for g, d in s["fed"].items():
                 L.append(f"    {g}: " + ", ".join(f"{f} {h[:12]}" for f, h in d["files"].items()))
+    if r.get("given_unread"):
+        L.append(f"given but never read: {compact_ids(r['given_unread'])}")
     if r["not_fed"]:
         L.append("did not feed it: " + ", ".join(
             f"{k} (0/{r['evidence_sets'][k]['n_total']})" for k in r["not_fed"]))

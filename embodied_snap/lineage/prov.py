@@ -1,9 +1,9 @@
-"""The run's provenance as W3C PROV-JSON (DESIGN.md section 5), built with the `prov` package.
+"""The run's provenance as W3C PROV-JSON (docs/design.md section 5), built with the `prov` package.
 
 Files are entities (sha256, bytes), jobs are activities (used / wasGeneratedBy, start and end
 times), the code that ran is used with role esnap:code, and every acquisition group is a
 prov:Collection of its raw files with its evidence set, category, role and held-out status
-(separation.POLICY decides what is held out), so a PROV tool can answer "which held-out group
+(lineage/policy.py decides what is held out), so a PROV tool can answer "which held-out group
 reached this figure" without knowing this project.
 """
 
@@ -16,8 +16,9 @@ from pathlib import Path
 
 from prov.model import ProvDocument
 
-from .records import group_of, load_groups, load_records
-from .checks import POLICY
+from .groups import group_of, load_groups
+from .policy import held_out
+from .records import last_config, load_records, raw_dir_of
 
 NAMESPACES = {
     "esnap": "urn:embodied-snap:ns#",  # attributes and types of this project
@@ -27,11 +28,6 @@ NAMESPACES = {
 }
 
 
-def held_out(role: str, evidence_set: str) -> bool:
-    """Validation and sealed groups, and every evidence set that must never feed a model fit."""
-    return bool(POLICY.get(role, POLICY.get(evidence_set, {})).get("held_out", False))
-
-
 def _time(s):
     try:
         return dt.datetime.fromisoformat(s)
@@ -39,8 +35,10 @@ def _time(s):
         return None
 
 
-def build(root=".") -> ProvDocument:
+def build(root=".", raw: str | None = None) -> ProvDocument:
+    """The PROV document of the recorded run; `raw`: the raw directory (default: the last run's)."""
     root = Path(root)
+    raw = raw or raw_dir_of(last_config(root))
     doc = ProvDocument()
     ns = {k: doc.add_namespace(k, uri) for k, uri in NAMESPACES.items()}
     code_t = ns["esnap"]["Code"]  # a qualified name, not the string "esnap:Code"
@@ -72,10 +70,10 @@ def build(root=".") -> ProvDocument:
         for e in r.get("outputs", []):
             doc.wasGeneratedBy(entity(e), act)
 
-    groups = load_groups(root)
+    groups = load_groups(root, raw)
     members: dict[str, list[str]] = {}
     for p in entities:
-        g = group_of(p)
+        g = group_of(p, raw)
         if g:
             members.setdefault(g[0], []).append(p)
     for gid in sorted(set(groups) | set(members)):
@@ -87,8 +85,8 @@ def build(root=".") -> ProvDocument:
         })
         paths = members.get(gid)
         if not paths:  # a group no recorded job touched: its files on disk, unhashed
-            gdir = root / "raw_data" / "groups" / gid
-            paths = [f"raw_data/groups/{gid}/{f}" for f in sorted(os.listdir(gdir))] if gdir.is_dir() else []
+            gdir = root / raw / "groups" / gid
+            paths = [f"{raw}/groups/{gid}/{f}" for f in sorted(os.listdir(gdir))] if gdir.is_dir() else []
             for p in paths:
                 entities.setdefault(p, doc.entity(f"file:{p}", {"esnap:path": p}))
         for p in sorted(paths):
@@ -96,10 +94,10 @@ def build(root=".") -> ProvDocument:
     return doc
 
 
-def export(root=".", out="results/lineage/prov.json") -> Path:
+def export(root=".", out="results/lineage/prov.json", raw: str | None = None) -> Path:
     out = Path(root) / out
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text(build(root).serialize(format="json", indent=1))
+    tmp.write_text(build(root, raw).serialize(format="json", indent=1))
     os.replace(tmp, out)
     return out

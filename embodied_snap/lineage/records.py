@@ -1,19 +1,25 @@
-"""Provenance records: one JSON file per finished job (DESIGN.md section 5).
+"""Provenance records: one JSON file per finished job (docs/lineage.md).
 
 Every workflow script wraps its work in `tracked(snakemake)`. On success the job's record lands
 in `results/provenance/<rule>/<wildcards>.json` with each input and output file, its sha256,
-size and mtime, the code that ran, params, code and package versions, times and host.
+size and mtime, the code that ran, params, code and package versions, times and host, and what the
+job really touched: every file it opened under the workflow root (`reads`) and every package
+module it loaded (`modules`). A job that opened a file under `results/` or the raw directory that
+it did not declare, or loaded a package module that is not among its code inputs, fails with one
+line: every run checks its own declarations.
+
+Reads are seen through Python's audit hook (the `open` event): `open`, `json`, `np.load`,
+`torch.load`, pandas' csv reader, and parquet through `embodied_snap.io` (pyarrow's own C++ reads
+are invisible to the hook, hence that one reader).
+
 Records are not Snakemake outputs: they describe jobs, they are not data. `esnap audit`,
 `esnap check-separation` and the PROV export read only these records (and the files on disk).
-
-Also here, because audit, separation and export all need them: which raw group a path belongs
-to, and the group table (evidence set, category, role) from `raw_data/index.csv` and
-`results/splits/split.csv`, read with `csv` so that `esnap audit` does not pay for pandas.
+This module uses the standard library alone and is not a declared code input of any rule
+(lineage/imports.py): it changes records, never a result.
 """
 
 from __future__ import annotations
 
-import csv
 import datetime as _dt
 import hashlib
 import json
@@ -28,22 +34,29 @@ from importlib import metadata
 from pathlib import Path
 
 RECORDS_DIR = "results/provenance"
-INDEX_CSV = "raw_data/index.csv"
-SPLIT_CSV = "results/splits/split.csv"
-TWIN_TRUTH = "raw_data/twin_truth.json"
+CONFIG_DIR = f"{RECORDS_DIR}/config"  # the config each run used, by sha256 (records name theirs)
 # The pinned dependencies whose versions can change a number (pyproject.toml).
 PACKAGES = (
     "snakemake", "mujoco", "numpy", "pandas", "pyarrow", "pandera", "scipy",
     "scikit-learn", "statsmodels", "cma", "torch", "matplotlib",
 )
-# A raw recording file: raw_data/groups/<group_id>/<file>.
-_GROUP_RE = re.compile(r"(?:^|/)raw_data/groups/([^/]+)/([^/]+)$")
+PACKAGE = "embodied_snap"
+# Loaded by every job for the bookkeeping itself; never declared (lineage/imports.py).
+EXEMPT_MODULES = frozenset({PACKAGE, f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"})
+# Folders under the root whose reads are neither data nor checked: logs and benchmarks the job
+# writes, code (declared and checked as modules), and hidden folders (.snakemake, .venv, .git).
+_NOT_DATA = ("logs/", "benchmarks/", f"{PACKAGE}/", "workflow_scripts/")
+DEFAULT_RAW = "raw_data"
 
 
-def group_of(path: str) -> tuple[str, str] | None:
-    """(group_id, file name) if `path` is a raw recording file, else None."""
-    m = _GROUP_RE.search(path)
-    return (m.group(1), m.group(2)) if m else None
+class UndeclaredInput(RuntimeError):
+    """A job touched what it did not declare: one line, `<file>: <what> (rule: <rule>)`."""
+
+
+def raw_dir_of(config: dict | None) -> str:
+    """The raw directory a config names, as a clean relative path."""
+    raw = ((config or {}).get("raw_data") or {}).get("dir", DEFAULT_RAW)
+    return os.path.normpath(str(raw)).replace(os.sep, "/")
 
 
 def is_code(path: str) -> bool:
@@ -150,8 +163,30 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="milliseconds")
 
 
+def write_config(config: dict, root=".") -> str:
+    """Store a run's config once under CONFIG_DIR; return its sha256 (records name it)."""
+    text = json.dumps(_jsonable(config), sort_keys=True, indent=1) + "\n"
+    sha = hashlib.sha256(text.encode()).hexdigest()
+    path = Path(root) / CONFIG_DIR / f"{sha}.json"
+    if not path.exists():
+        _atomic_text(path, text)
+    return sha
+
+
+def _atomic_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+    try:
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)  # atomic: a reader sees the old file or the new, never half
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
 def write_record(rule, wildcards, inputs, outputs, params, started, root=".", *, log=(),
-                 finished=None) -> Path:
+                 finished=None, reads=None, modules=None, config=None) -> Path:
     """Write the record of one job (the same as `tracked` does, without snakemake)."""
     root = Path(root)
     wildcards = {str(k): str(v) for k, v in dict(wildcards or {}).items()}
@@ -163,6 +198,10 @@ def write_record(rule, wildcards, inputs, outputs, params, started, root=".", *,
         code=file_entries([p for p in ins if is_code(p)], root),
         outputs=file_entries(outputs, root),
         log=[_rel(p, root) for p in log],
+        reads=sorted(reads) if reads is not None else None,
+        modules=file_entries(sorted(modules), root) if modules is not None else None,
+        raw_dir=raw_dir_of(config),
+        config_sha256=write_config(config, root) if config is not None else None,
         params=_jsonable(params or {}),
         code_version=code_version(root),
         packages=package_versions(),
@@ -172,16 +211,7 @@ def write_record(rule, wildcards, inputs, outputs, params, started, root=".", *,
         host=socket.gethostname(),
     )
     path = record_path(rule, wildcards, root)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(rec, f, indent=1)
-            f.write("\n")
-        os.replace(tmp, path)  # atomic: a reader sees the old record or the new, never half
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    _atomic_text(path, json.dumps(rec, indent=1) + "\n")
     return path
 
 
@@ -194,13 +224,88 @@ def _script_path(root: Path) -> str | None:
     return cand if name and (root / cand).is_file() else None
 
 
+# --- what a job really touched -----------------------------------------------------------------
+
+_opened: set[str] | None = None  # paths opened for reading while a tracked job runs
+_hooked = False
+
+
+def _audit(event: str, args: tuple) -> None:
+    # Runs on every audit event of the process: return at once unless a job is watching an open.
+    if event != "open" or _opened is None:
+        return
+    try:
+        path, mode, flags = args
+        if path is None or isinstance(path, int):
+            return  # an fd: the file was opened (and seen) before
+        ro = (flags & os.O_ACCMODE) == os.O_RDONLY if mode is None else not any(c in mode for c in "wax+")
+        if ro:
+            _opened.add(os.fsdecode(path))
+    except Exception:  # noqa: BLE001 -- a hook that raises would break the job's own open()
+        pass
+
+
+def _watch() -> None:
+    global _opened, _hooked
+    if not _hooked:
+        sys.addaudithook(_audit)  # hooks cannot be removed; _opened = None turns it off
+        _hooked = True
+    _opened = set()
+
+
+def _stop_watching(root: Path) -> list[str]:
+    """Files under root the job opened for reading (relative paths), data only."""
+    global _opened
+    opened, _opened = _opened or set(), None
+    out = set()
+    for p in opened:
+        rel = _rel(os.path.abspath(p), root)
+        if rel.startswith("../") or rel.startswith(_NOT_DATA) or any(c.startswith(".") for c in rel.split("/")):
+            continue
+        out.add(rel)
+    return sorted(out)
+
+
+def loaded_modules() -> list[str]:
+    """Source files (package-relative paths, e.g. embodied_snap/io.py) of the package modules
+    loaded in this process, less the bookkeeping's own (EXEMPT_MODULES)."""
+    out = []
+    for name, mod in list(sys.modules.items()):
+        if name in EXEMPT_MODULES or not name.startswith(PACKAGE + "."):
+            continue
+        f = getattr(mod, "__file__", None) or ""
+        out.append("/".join(name.split(".")) + ("/__init__.py" if f.endswith("__init__.py") else ".py"))
+    return sorted(out)
+
+
+def check_declared(rule: str, declared: list[str], reads: list[str], modules: list[str], raw: str) -> None:
+    """Fail (one line) on a read under results/ or the raw directory, or a loaded package module,
+    that the job did not declare. Provenance records themselves are metadata, not data: the
+    lineage jobs read them all."""
+    decl = set(declared)
+    dirs = tuple(d.rstrip("/") + "/" for d in declared)
+    for p in reads:
+        if not (p.startswith("results/") or p.startswith(raw + "/")) or p.startswith(RECORDS_DIR + "/"):
+            continue
+        if p not in decl and not p.startswith(dirs):
+            raise UndeclaredInput(f"{p}: read by rule {rule} but not among its declared inputs "
+                                  "(rule: a job reads only what it declares)")
+    for m in modules:
+        if m not in decl:
+            raise UndeclaredInput(f"{m}: loaded by rule {rule} but not among its code inputs "
+                                  "(rule: code inputs are the script's imports, lineage/imports.py)")
+
+
 @contextmanager
-def tracked(smk, root="."):
+def tracked(smk, root=".", check_modules: bool = True):
     """Wrap a workflow script's work: `with tracked(snakemake): ...`.
 
     The old record goes first, so a failed job never leaves a record that vouches for outputs it
-    did not write. On success the record is written; on an exception nothing is. It yields a list:
-    a job that writes files Snakemake does not declare (the simulated rig's recordings) adds them.
+    did not write. On success the job's reads and modules are checked against its declarations
+    (UndeclaredInput, one line) and the record is written; on an exception nothing is. It yields
+    a list: a job that writes files Snakemake does not declare (the simulated rig's recordings)
+    adds them. `check_modules=False` is for tests that run it inside a process (pytest) that has
+    loaded other modules than the job's.
     """
     root = Path(root)
     wildcards = {k: str(v) for k, v in _named(getattr(smk, "wildcards", None)).items() if k != "_"}
@@ -208,25 +313,45 @@ def tracked(smk, root="."):
     rp.unlink(missing_ok=True)
     started = _now()
     undeclared: list[str] = []
-    yield undeclared
-    inputs = _flat(smk.input)
+    _watch()
+    try:
+        yield undeclared
+    finally:
+        reads = _stop_watching(root)
+    config = dict(getattr(smk, "config", None) or {})
+    inputs = [_rel(p, root) for p in _flat(smk.input)]
+    outputs = _flat(smk.output) + undeclared
+    log = _flat(getattr(smk, "log", None))
+    modules = loaded_modules() if check_modules else []
+    own = {_rel(p, root) for p in outputs + log}
+    try:
+        check_declared(smk.rule, inputs + sorted(own), reads, modules, raw_dir_of(config))
+    except UndeclaredInput as e:
+        sys.exit(f"error: {e}")  # one line, in the job's log
     script = _script_path(root)
     if script and script not in inputs:
         inputs.append(script)
-    write_record(smk.rule, wildcards, inputs, _flat(smk.output) + undeclared, _named(getattr(smk, "params", None)),
-                 started, root, log=_flat(getattr(smk, "log", None)))
+    write_record(smk.rule, wildcards, inputs, outputs, _named(getattr(smk, "params", None)),
+                 started, root, log=log, reads=reads, modules=modules, config=config)
 
 
-def load_records(root=".") -> dict[str, dict]:
+def load_records(root=".", errors: list | None = None) -> dict[str, dict]:
     """Output path -> the record of the job that wrote it (each record also gets `_record`, its own
-    path). Where two records claim a path (a rule renamed), the later-finished wins."""
+    path). Where two records claim a path (a rule renamed), the later-finished wins. A record that
+    cannot be read is skipped here and, when `errors` is given, appended to it (path, why)."""
     root = Path(root)
     out: dict[str, dict] = {}
     for f in sorted((root / RECORDS_DIR).glob("*/*.json")):
+        if f.parent.name == "config":
+            continue
         try:
             rec = json.loads(f.read_text())
-        except (OSError, ValueError):
-            continue  # a record being replaced right now; the rename makes this rare
+            if not isinstance(rec, dict) or "rule" not in rec:
+                raise ValueError("not a provenance record")
+        except (OSError, ValueError) as e:
+            if errors is not None:
+                errors.append((f.relative_to(root).as_posix(), f"{type(e).__name__}: {e}"))
+            continue
         rec["_record"] = f.relative_to(root).as_posix()
         for o in rec.get("outputs", []):
             old = out.get(o["path"])
@@ -235,24 +360,11 @@ def load_records(root=".") -> dict[str, dict]:
     return out
 
 
-def load_groups(root=".") -> dict[str, dict]:
-    """group_id -> {evidence_set, category, session, role}: index.csv, roles from split.csv.
-
-    Without a split, roles follow the design: a non-dynamics group's role is its evidence set;
-    a sealed-category dynamics group is sealed; other dynamics groups stay 'dynamics'."""
+def last_config(root=".") -> dict | None:
+    """The config of the most recently finished recorded job (the last run's), or None."""
     root = Path(root)
-    groups: dict[str, dict] = {}
-    if (root / INDEX_CSV).exists():
-        with open(root / INDEX_CSV, newline="") as f:
-            for r in csv.DictReader(f):
-                es, cat = r.get("evidence_set", ""), r.get("category", "")
-                role = es if es != "dynamics" else ("sealed" if cat == "sealed" else "dynamics")
-                groups[r["group_id"]] = dict(evidence_set=es, category=cat,
-                                             session=r.get("session", ""), role=role)
-    if (root / SPLIT_CSV).exists():
-        with open(root / SPLIT_CSV, newline="") as f:
-            for r in csv.DictReader(f):
-                g = groups.setdefault(r["group_id"], dict(evidence_set="unknown", category="",
-                                                          session="", role=""))
-                g["role"] = r["role"]
-    return groups
+    recs = [r for r in load_records(root).values() if r.get("config_sha256")]
+    if not recs:
+        return None
+    last = max(recs, key=lambda r: r.get("finished", ""))
+    return json.loads((root / CONFIG_DIR / f"{last['config_sha256']}.json").read_text())

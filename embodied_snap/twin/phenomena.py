@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
+from ..io import read_parquet
 from ..characterize.load import release_start
 from ..characterize.mocap import peak, section_rates, tip_speed
 
@@ -36,7 +37,7 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
             continue
         p = RF.group_paths(raw_dir, row.group_id)
         meta = RF.read_meta(p["meta"])
-        mc = pd.read_parquet(p["mocap"])
+        mc = read_parquet(p["mocap"])
         t, t0 = mc.t.to_numpy(), release_start(meta) - LEAD_S
         v, _ = peak(tip_speed(mc), t, t0)
         rec = dict(group_id=row.group_id, es=row.evidence_set, cat=row.category, v=v, tau=meta["program"].get("tau"), attached=meta["labels"].get("attached"))

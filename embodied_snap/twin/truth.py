@@ -9,8 +9,12 @@ import zlib
 
 import numpy as np
 
+from ..quat import from_rotvec as quat_from_rotvec
+from ..quat import qmul
 from . import model as M
+from . import protocols as P
 from . import servo as SV
+from . import sim
 
 # Fold latch and cup seal (identified against paper III; see docs/twin.md).
 LATCH = dict(engage_rad=1.4, catch_rad=0.05, creep_s=1.32, open_m=0.0074, break_nm=30.0, curl_min=4.99, curl_max=5.445)
@@ -47,7 +51,6 @@ def session_params(seed: int, session: str) -> dict:
     base = np.asarray(BASE_LAB) + r.normal(0, 0.003, 3)  # the mount is re-measured each session
     tilt = r.normal(0, np.deg2rad(0.6), 3)  # calibration wand: small frame rotation
     tilt[1] = r.uniform(-np.pi, np.pi) * 0.02  # and a little yaw
-    from ..quat import from_rotvec as quat_from_rotvec
 
     q = quat_from_rotvec(tilt)
     return dict(
@@ -87,9 +90,6 @@ def effective_levers(amplitude: float = 2000.0, dt: float = 0.001) -> list[float
     """The slope of Eq. 1 a fit sees on this model: held bursts of each section (cable 1 pulling,
     bearing 0) under gravity, where the compliant cable is stretched by the load. Solved
     section by section from the true section bends (distal cables traverse the proximal ones)."""
-    from . import protocols as P
-    from . import sim
-    from ..quat import qmul
 
     L = []
     p = dict(M.NOMINAL)

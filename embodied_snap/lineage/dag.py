@@ -1,0 +1,74 @@
+"""The Snakemake workflow as plain data: the one place that uses Snakemake's private API.
+
+The public API (SnakemakeApi -> workflow -> dag) builds a DAG but exposes neither the parsed
+rules nor a DAG object, so this reads `WorkflowApi._workflow` and does what `DAGApi.printdag`
+does internally: prepare and build the DAG of the Workflow and read `workflow.dag`.
+tests/test_lineage_dag.py fails loudly when a Snakemake upgrade breaks it.
+"""
+
+from __future__ import annotations
+
+import os
+from contextlib import contextmanager
+from pathlib import Path
+
+
+def _norm(p) -> str:
+    return os.path.normpath(str(p)).replace(os.sep, "/")
+
+
+@contextmanager
+def _workflow(workdir, configfiles, config_overrides):
+    """The parsed Workflow of the Snakefile in `workdir`, silent, writing no log file."""
+    from snakemake.api import SnakemakeApi
+    from snakemake.settings.enums import Quietness
+    from snakemake.settings.types import ConfigSettings, OutputSettings, ResourceSettings
+
+    cwd = os.getcwd()
+    workdir = Path(workdir).resolve()
+    try:
+        out = OutputSettings(quiet={Quietness.ALL}, enable_file_logging=False)
+        with SnakemakeApi(out) as api:
+            wf_api = api.workflow(
+                ResourceSettings(cores=1),
+                ConfigSettings(configfiles=[Path(c).resolve() for c in configfiles or ()],
+                               config=dict(config_overrides or {})),
+                snakefile=workdir / "Snakefile",
+                workdir=workdir,
+            )
+            yield wf_api
+    finally:
+        os.chdir(cwd)
+
+
+def rule_table(workdir=".", configfiles=None, config_overrides=None) -> dict[str, dict]:
+    """{rule: {script: file name or None, code: its named input `code` (when not a function)}}."""
+    with _workflow(workdir, configfiles, config_overrides) as wf_api:
+        out = {}
+        for r in wf_api._workflow.rules:
+            code = getattr(r.input, "code", None)
+            out[r.name] = dict(script=Path(r.script).name if r.script else None,
+                               code=None if code is None or callable(code) else [_norm(f) for f in code])
+        return out
+
+
+def build_dag(workdir=".", configfiles=None, config_overrides=None, targets=("all",)) -> list[dict]:
+    """The jobs of the workflow in `workdir`, forceall (jobs whose outputs exist are in it):
+    [{rule, wildcards, input, output, down: [indices of jobs that consume its outputs]}]."""
+    from snakemake.settings.types import DAGSettings
+
+    with _workflow(workdir, configfiles, config_overrides) as wf_api:
+        wf_api.dag(DAGSettings(targets=frozenset(targets), forceall=True))  # installs the settings
+        wf = wf_api._workflow
+        wf._prepare_dag(forceall=True, ignore_incomplete=True, lock_warn_only=True)
+        wf._build_dag()
+        dag = wf.dag
+        jobs = list(dag.jobs)
+        idx = {j: i for i, j in enumerate(jobs)}
+        nodes = [dict(rule=j.rule.name, wildcards={k: str(v) for k, v in j.wildcards.items()},
+                      input=[_norm(f) for f in j.input], output=[_norm(f) for f in j.output],
+                      down=[]) for j in jobs]
+        for j in jobs:
+            for dep in dag.dependencies[j]:
+                nodes[idx[dep]]["down"].append(idx[j])
+        return nodes

@@ -1,0 +1,138 @@
+"""What each evidence set may feed (docs/design.md section 3), as an allow list: the one place to
+change it.
+
+A source is an evidence set, a split role of the dynamics corpus, or a file (the simulated rig's
+ground truth, a simulated target set). Data of a source *reaches* a job when it flows to the job
+through any chain of jobs. Every job a source reaches must be named in its `may_feed`, by rule name
+or by one wildcard instance `rule(k=v)`; anything else is a violation. Every rule of the workflow
+must be named somewhere here (as bookkeeping, a gate, a target, a source rule or in some
+`may_feed`): a rule nothing names is a violation too, so a new rule needs a decision here first.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# Jobs that carry only metadata about recordings (checks, manifest, index, split table, the
+# lineage itself, the overview figure of the recordings): data does not flow *through* them, or
+# the raw manifest, which reads every group, would make every group reach everything after it.
+BOOKKEEPING = frozenset({
+    "validate_shard", "validate_index", "raw_manifest", "twin_index", "split",
+    "check_separation", "prov_export", "fig_data_overview",
+})
+# Jobs whose outputs are statements about the whole run: reports list them as inputs only to run
+# after them, so `esnap audit` lists them in a chain but does not descend into them.
+GATES = frozenset({"check_separation", "prov_export"})
+# Rules that only name other targets and write nothing.
+TARGETS = frozenset({"all"})
+# Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
+SOURCE_RULES = frozenset({"twin_acquire", "validate_shard", "resample_shard"})
+# Rules that write a file source.
+FILE_WRITERS = frozenset({"twin_truth", "policy_targets"})
+
+# Reports of each stage: tables and figures, and the folder that gathers the figures.
+CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_validation", "figures")
+DYN_REPORTS = ("table_dynamics_claims", "fig_gates", "figures")
+POLICY_RUNS = ("policy_search", "policy_evaluate", "policy_fixed", "policy_summary")
+POLICY_REPORTS = ("fig_benchmark", "table_policy_claims", "figures")
+# Everything that uses the GRU models (trained on train, selected on validation windows).
+MODEL_USERS = (
+    "dynamics_validate", "dynamics_sealed_eval", "dynamics_gate", *POLICY_RUNS, *DYN_REPORTS,
+    *POLICY_REPORTS,
+)
+
+
+@dataclass(frozen=True)
+class Source:
+    may_feed: tuple[str, ...]
+    rule: str  # the sentence of docs/design.md section 3 a violation breaks
+    held_out: bool = False  # kept out of every model fit (exported as esnap:held_out)
+    # File sources: the only rules that may read the file itself (the separation proof reads the
+    # target sets to show they are disjoint; it writes no data).
+    readers: tuple[str, ...] = ()
+
+
+POLICY: dict[str, Source] = {
+    "servo_calibration": Source(
+        ("characterize_kinematics", "characterize_servo", "characterize_release", "characterize_heldbase",
+         *CHAR_REPORTS),
+        "servo_calibration may feed tendon kinematics, the servo rate fit and the rate ceilings, never "
+        "the dynamics model or policies"),
+    "attachment": Source(
+        ("characterize_attachment", "twin_phenomena", *CHAR_REPORTS),
+        "attachment may feed the speed/angle attachment model, never the dynamics model or policies"),
+    "release_mode": Source(
+        ("characterize_release", "twin_phenomena", *CHAR_REPORTS),
+        "release_mode may feed Fig. 2b, never the dynamics model"),
+    "delay_sweep": Source(
+        ("characterize_delay_sweep", "twin_phenomena", "dynamics_gate", *CHAR_REPORTS, *DYN_REPORTS),
+        "delay_sweep may feed the timing set and the timing/dynamics gates, never any model fit",
+        held_out=True),
+    "held_base": Source(
+        ("characterize_heldbase", *CHAR_REPORTS),
+        "held_base may feed the trigger-detection comparison, never the dynamics model or policies"),
+    "deployment": Source(
+        (),
+        "deployment may feed Table II and Fig. 7, nothing upstream of the manifest", held_out=True),
+    # The dynamics corpus by split role (440 / 78 / 20).
+    "train": Source(
+        ("windows(role=train)", "dynamics_train", "characterize_snap", "dynamics_hold", "policy_workspace",
+         "policy_targets", *MODEL_USERS, *CHAR_REPORTS),
+        "train groups stay in the training windows; the hold bank and snap classifier use them"),
+    "validation": Source(
+        ("windows(role=validation)", "dynamics_train", "dynamics_persistence", *MODEL_USERS),
+        "validation groups feed model selection and the validation errors; never the training "
+        "windows, the hold bank or the snap classifier", held_out=True),
+    "sealed": Source(
+        ("windows(role=sealed)", "dynamics_sealed_eval", "table_dynamics_claims"),
+        "sealed groups may feed only the sealed windows, the single sealed evaluation and its table",
+        held_out=True),
+    # Files. The twin's truth: `raw` is replaced by the configured raw directory.
+    "twin_truth": Source(
+        ("twin_validation",), "only twin_validation reads the simulated rig's ground truth",
+        held_out=True, readers=("twin_validation",)),
+    "results/policy/targets_selection.parquet": Source(
+        (*POLICY_RUNS, *POLICY_REPORTS),
+        "the selection targets select policies and the fixed primitive, nothing else",
+        readers=("policy_search", "policy_fixed", "check_separation")),
+    "results/policy/targets_evaluation.parquet": Source(
+        ("policy_evaluate", "policy_fixed", "policy_summary", *POLICY_REPORTS),
+        "the evaluation targets are read only by the final evaluation, after selection",
+        held_out=True, readers=("policy_evaluate", "policy_fixed", "check_separation")),
+}
+FILE_SOURCES = tuple(k for k, v in POLICY.items() if v.readers)
+WINDOW_ROLES = ("train", "validation", "sealed")
+TARGET_SETS = ("training", "selection", "evaluation")
+
+
+def label(rule: str, wildcards: dict) -> str:
+    return f"{rule}({','.join(f'{k}={v}' for k, v in sorted(wildcards.items()))})" if wildcards else rule
+
+
+def _names(entry: str) -> str:
+    return entry.split("(", 1)[0]
+
+
+def named_rules() -> frozenset[str]:
+    """Every rule this policy names."""
+    out = set(BOOKKEEPING | GATES | TARGETS | SOURCE_RULES | FILE_WRITERS)
+    for s in POLICY.values():
+        out |= {_names(e) for e in s.may_feed + s.readers}
+    return frozenset(out)
+
+
+def may_feed(source: str, rule: str, wildcards: dict) -> bool:
+    """Does the policy allow data of `source` to reach this job? Bookkeeping and the source rules
+    (where a shard's recordings enter) are always allowed; a source without a policy row (the
+    unsplit dynamics corpus) is judged by its split roles."""
+    p = POLICY.get(source)
+    if p is None or rule in BOOKKEEPING or rule in SOURCE_RULES:
+        return True
+    lab = label(rule, wildcards)
+    return any(e == rule or e == lab for e in p.may_feed)
+
+
+def held_out(role: str, evidence_set: str) -> bool:
+    """Validation and sealed groups, and every evidence set that must never feed a model fit."""
+    p = POLICY.get(role) or POLICY.get(evidence_set)
+    return bool(p and p.held_out)

@@ -1,0 +1,33 @@
+"""Fixtures shared by several test modules. Helper modules (fakerig, lineage_tree) write files;
+what is built in memory lives here."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
+
+
+def _synthetic_frames(n_groups=6, n=140, seed=0):
+    """Servos lag their step goals (first order); bodies and axis follow the servo positions
+    through a fixed linear map with a little sway: learnable, but not constant velocity."""
+    rng = np.random.default_rng(seed)
+    A = rng.normal(0, 2e-5, (9, 12))
+    out = []
+    for g in range(n_groups):
+        goal = np.repeat(rng.uniform(0, 3000, (n // 20 + 1, 9)), 20, 0)[:n]
+        pos = np.zeros((n, 9))
+        for k in range(1, n):
+            pos[k] = pos[k - 1] + 0.3 * (goal[k - 1] - pos[k - 1])
+        body = pos @ A + 0.01 * np.sin(np.arange(n) / 5)[:, None] + np.tile([0.0, -0.5, 0.0], 4)  # hangs along -y
+        f = pd.DataFrame(np.c_[body, pos, goal], columns=STATE_COLUMNS + COMMAND_COLUMNS).astype(np.float32)
+        f.insert(0, "t", np.arange(n) * 0.02)
+        f.insert(0, "group_id", f"g{g}")
+        out.append(f)
+    return pd.concat(out, ignore_index=True)
+
+
+@pytest.fixture(scope="session")
+def synthetic_frames():
+    """A function (n_groups, n, seed) -> 50 Hz frames of a learnable toy arm."""
+    return _synthetic_frames

@@ -1,0 +1,39 @@
+"""The one module that uses Snakemake's private API (lineage/dag.py): if a Snakemake upgrade
+moves what it reads, these fail here, loudly, rather than the separation proof passing on an
+empty graph."""
+
+from embodied_snap.lineage.dag import build_dag, rule_table
+
+SNAKEFILE = '''
+rule all:
+    input: "c.txt"
+
+rule a:
+    output: "a_{x}.txt"
+    shell: "touch {output}"
+
+rule c:
+    input: expand("a_{x}.txt", x=(1, 2)), code=["m.py"]
+    output: "c.txt"
+    script: "s.py"
+'''
+
+
+def test_build_dag_reads_jobs_and_edges(tmp_path):
+    (tmp_path / "Snakefile").write_text(SNAKEFILE)
+    (tmp_path / "m.py").write_text("")
+    nodes = build_dag(tmp_path)
+    by = {(n["rule"], tuple(sorted(n["wildcards"].items()))): n for n in nodes}
+    assert set(by) == {("all", ()), ("a", (("x", "1"),)), ("a", (("x", "2"),)), ("c", ())}
+    c = by[("c", ())]
+    assert c["input"] == ["a_1.txt", "a_2.txt", "m.py"] and c["output"] == ["c.txt"]
+    for x in ("1", "2"):
+        assert [nodes[k]["rule"] for k in by[("a", (("x", x),))]["down"]] == ["c"]
+    assert [nodes[k]["rule"] for k in c["down"]] == ["all"]
+
+
+def test_rule_table_reads_scripts_and_code(tmp_path):
+    (tmp_path / "Snakefile").write_text(SNAKEFILE)
+    t = rule_table(tmp_path)
+    assert t["c"] == {"script": "s.py", "code": ["m.py"]}
+    assert t["a"] == {"script": None, "code": None}
