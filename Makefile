@@ -26,6 +26,7 @@ test: install
 lint: install
 	$(VENV)/bin/snakemake --lint
 	$(VENV)/bin/snakefmt --check Snakefile rules
+	$(VENV)/bin/ruff check .
 
 format: install
 	$(VENV)/bin/snakefmt Snakefile rules

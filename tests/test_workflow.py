@@ -111,6 +111,7 @@ def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
     jobs = dry_jobs(wf, "results/figures")
     assert jobs == sorted([
         ("validate_shard", "shard=attachment-00"),
+        ("validate_index", ""),
         ("characterize_attachment", ""),
         ("fig_limits", ""),
         ("raw_manifest", ""),

@@ -136,7 +136,7 @@ def dag_violations(nodes: list[dict], groups: dict | None = None, raw: str = DEF
 # --- on the records --------------------------------------------------------------------------------
 
 
-def _record_violations(root: Path, groups: dict, raw: str) -> tuple[list[str], dict]:
+def _record_violations(root: Path, groups: dict, raw: str, complete: bool) -> tuple[list[str], dict]:
     errors: list = []
     by_output = load_records(root, errors)
     out = [f"separation (records): {p} cannot be read ({why}); {RULE}: every result has a readable "
@@ -170,7 +170,7 @@ def _record_violations(root: Path, groups: dict, raw: str) -> tuple[list[str], d
                 continue
             prod = by_output.get(p)
             if prod is None:
-                if p.startswith("results/") and not p.startswith(RECORDS_DIR + "/"):
+                if complete and p.startswith("results/") and not p.startswith(RECORDS_DIR + "/"):
                     missing.add(f"separation (records): {p} (read by rule {r['rule']}) has no provenance "
                                 f"record; {RULE}: every result has a readable provenance record")
                 continue
@@ -284,10 +284,10 @@ def _target_violations(root: Path) -> tuple[list[str], int]:
     return out, len(sets)
 
 
-def _records_check(root: Path, raw: str, scan: bool) -> tuple[list[str], dict]:
+def _records_check(root: Path, raw: str, complete: bool) -> tuple[list[str], dict]:
     groups = load_groups(root, raw)
-    out, counts = _record_violations(root, groups, raw)
-    if scan:
+    out, counts = _record_violations(root, groups, raw, complete)
+    if complete:
         out += unrecorded(root)
     out += _split_violations(root, groups)
     w, nw = _window_violations(root, groups)
@@ -296,8 +296,8 @@ def _records_check(root: Path, raw: str, scan: bool) -> tuple[list[str], dict]:
     return out + w + t, counts
 
 
-def check_records(root=".", raw: str = DEFAULT_RAW, scan: bool = True) -> list[str]:
-    return _records_check(Path(root), raw, scan)[0]
+def check_records(root=".", raw: str = DEFAULT_RAW, complete: bool = True) -> list[str]:
+    return _records_check(Path(root), raw, complete)[0]
 
 
 def check_dag(workdir=".", configfiles=None, config_overrides: dict | None = None,
@@ -307,11 +307,12 @@ def check_dag(workdir=".", configfiles=None, config_overrides: dict | None = Non
                           load_groups(workdir, raw), raw)[0]
 
 
-def check(root=".", static=True, records=True, config_overrides: dict | None = None, scan: bool = True,
+def check(root=".", static=True, records=True, config_overrides: dict | None = None, complete: bool = True,
           **dag_kwargs) -> dict:
     """Both proofs, for the config `config_overrides` (default: the one the last run recorded);
-    a DAG that cannot be built is a failed proof, not a pass. `scan`: also report result files
-    without a record (off inside the workflow, where jobs beside the check are still writing)."""
+    a DAG that cannot be built is a failed proof, not a pass. `complete`: the run has finished, so
+    every result file and every result a record used must have a record of its own (off inside the
+    workflow, where jobs beside the check are still rebuilding theirs)."""
     root = Path(root)
     cfg = config_overrides if config_overrides is not None else (last_config(root) or {})
     raw = raw_dir_of(cfg)
@@ -325,7 +326,7 @@ def check(root=".", static=True, records=True, config_overrides: dict | None = N
         violations += v
         checked.update(c)
     if records:
-        v, c = _records_check(root, raw, scan)
+        v, c = _records_check(root, raw, complete)
         violations += v
         checked.update(c)
     return dict(ok=not violations, violations=violations, checked=checked, raw_dir=raw)
