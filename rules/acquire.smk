@@ -16,6 +16,7 @@ checkpoint twin_acquire:
         groups=lambda wc: select(shard=wc.shard).to_dict("records"),
         raw=RAW,
         seed=config["seed"],
+        protocol=protocol_params("primitive", "rig", "thresholds"),
         dt=config["twin"]["dt"],
     script:
         "../workflow_scripts/twin_acquire.py"
@@ -56,7 +57,13 @@ rule twin_phenomena:
     input:
         raw=raw_of(evidence_set=PHENOMENA_SETS),
         valid=validated(evidence_set=PHENOMENA_SETS),
-        code=code("twin/phenomena", "characterize/load", "characterize/mocap", "quat"),
+        code=code(
+            "twin/phenomena",
+            "characterize/load",
+            "characterize/mocap",
+            "quat",
+            "protocol",
+        ),
     output:
         "results/twin/phenomena.json",
     log:
@@ -67,6 +74,7 @@ rule twin_phenomena:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
+        protocol=protocol_params("primitive", "rig", "thresholds"),
         groups=select(evidence_set=PHENOMENA_SETS)[
             ["group_id", "evidence_set", "category", "session"]
         ].to_dict("records"),

@@ -49,13 +49,12 @@ rule characterize_kinematics:
 
 
 rule characterize_servo:
-    """First-order fit over all calibration bursts; Eq. 2 ceilings from the rated speed."""
+    """First-order fit over all calibration bursts; Eq. 2 ceilings from the rated speed (config)."""
     input:
         raw=raw_of(**CAL),
         valid=validated(**CAL),
         kinematics=f"{CHAR}/kinematics.json",
-        code=code("characterize/servo", "characterize/load", "rawformat", "reference"),
-        reference="reference/paper_values.yaml",
+        code=code("characterize/servo", "characterize/load", "rawformat", "protocol"),
     output:
         f"{CHAR}/servo.json",
     log:
@@ -67,6 +66,7 @@ rule characterize_servo:
     params:
         raw=RAW,
         groups=CAL_GROUPS,
+        protocol=protocol_params("rig"),
     script:
         "../workflow_scripts/characterize_servo.py"
 
@@ -91,6 +91,7 @@ rule characterize_release:
         groups=select(evidence_set="release_mode")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/characterize_release.py"
 
@@ -114,6 +115,7 @@ rule characterize_attachment:
         groups=select(evidence_set="attachment")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/characterize_attachment.py"
 
@@ -138,6 +140,7 @@ rule characterize_snap:
         groups=select(**SNAP_GROUPS)[["group_id", "category", "session"]].to_dict(
             "records"
         ),
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/characterize_snap.py"
 
@@ -240,6 +243,7 @@ rule fig_limits:
         "../envs/esnap.yaml"
     params:
         seed=config["seed"],
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/fig_limits.py"
 
@@ -261,5 +265,7 @@ rule fig_snap:
         "logs/fig_snap.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/fig_snap.py"

@@ -64,6 +64,8 @@ rule dynamics_persistence:
         "logs/dynamics/persistence.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/dynamics_persistence.py"
 
@@ -81,6 +83,8 @@ rule dynamics_validate:
     conda:
         "../envs/esnap.yaml"
     threads: DCFG["threads"]
+    params:
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/dynamics_validate.py"
 
@@ -102,6 +106,7 @@ rule dynamics_sealed_eval:
     threads: DCFG["threads"]
     params:
         seeds=DSEEDS,
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/dynamics_sealed_eval.py"
 
@@ -113,7 +118,13 @@ rule dynamics_gate:
         models=DMODELS,
         shards=expand("results/data/50hz/{shard}.parquet", shard=SWEEP_SHARDS),
         metas=lambda wc: [f for f in raw_of(**SWEEP)(wc) if f.endswith("meta.json")],
-        code=code("dynamics/gate", "dynamics/hold", "dynamics/data", "dynamics/model"),
+        code=code(
+            "dynamics/gate",
+            "dynamics/hold",
+            "dynamics/data",
+            "dynamics/model",
+            "protocol",
+        ),
     output:
         f"{DYN}/gate.json",
     log:
@@ -123,6 +134,7 @@ rule dynamics_gate:
     params:
         seeds=DSEEDS,
         after_s1=DCFG["after_s1_s"],
+        protocol=protocol_params("sampling", "windows"),
     script:
         "../workflow_scripts/dynamics_gate.py"
 
@@ -143,6 +155,7 @@ rule dynamics_hold:
         "../envs/esnap.yaml"
     params:
         groups=HOLD_GROUPS,
+        protocol=protocol_params("primitive", "windows"),
     script:
         "../workflow_scripts/dynamics_hold.py"
 
@@ -185,5 +198,7 @@ rule fig_gates:
         "logs/fig_gates.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/fig_gates.py"

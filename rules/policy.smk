@@ -29,10 +29,14 @@ SIM_CODE = code(
     "dynamics/hold",
     "dynamics/model",
     "characterize/snap",
-    "twin/protocols",
+    "primitive",
+    "protocol",
 )
 SIM_PARAMS = dict(
-    policy=PCFG, after_s1=DCFG["after_s1_s"], ee_m=config["rig"]["end_effector_m"]
+    policy=PCFG,
+    after_s1=DCFG["after_s1_s"],
+    ee_m=config["rig"]["end_effector_m"],
+    protocol=protocol_params("sampling", "windows", "primitive"),
 )
 
 
@@ -57,6 +61,7 @@ rule policy_workspace:
         groups=HOLD_GROUPS,
         after_s1=DCFG["after_s1_s"],
         ee_m=config["rig"]["end_effector_m"],
+        protocol=protocol_params("primitive"),
     script:
         "../workflow_scripts/policy_workspace.py"
 
@@ -181,6 +186,7 @@ rule policy_summary:
         budget_evaluations=PBUDGET["generations"]
         * PBUDGET["popsize"]
         * PBUDGET["targets_per_candidate"],
+        protocol=protocol_params("primitive"),
     script:
         "../workflow_scripts/policy_summary.py"
 

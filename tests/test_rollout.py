@@ -7,7 +7,7 @@ from embodied_snap.dynamics.model import TIP, Dynamics, norm_stats
 from embodied_snap.dynamics.rollout import Ensemble
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 
-from test_dynamics import synthetic_frames
+from test_dynamics import LOOKAHEAD, synthetic_frames
 
 torch.set_num_threads(1)
 
@@ -19,7 +19,7 @@ def members(n=3):
     ms = []
     for s in range(n):
         torch.manual_seed(s)
-        m = Dynamics(stats)
+        m = Dynamics(stats, LOOKAHEAD)
         torch.nn.init.normal_(m.head.weight, std=0.02)  # a nonzero residual that stays physical
         ms.append(m.eval())
     return ms, X, U

@@ -1,6 +1,6 @@
 """Attachment (paper III-B, Fig. 2c): a descriptive speed/cup-tilt logistic model with
 session-grouped cross-validated AUC; attachments below 1 m/s; the attach fraction among trials
-arriving within 150 mm laterally and above 1 m/s."""
+arriving within 150 mm laterally and above 1 m/s (the protocol's attachment threshold, passed in)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from statsmodels.stats.proportion import proportion_confint
 
-SNAP_MPS = 1.0
 LATERAL_M = 0.150
 
 
@@ -35,7 +34,8 @@ def grouped_auc(X, y, groups, make=model, n_splits=5) -> float:
     return float(roc_auc_score(y, p))
 
 
-def fit(rows) -> dict:
+def fit(rows, attach_speed_mps: float) -> dict:
+    SNAP_MPS = attach_speed_mps
     r = [x for x in rows if np.isfinite(x["v_peak"]) and np.isfinite(x["tilt_deg"])]
     X = np.array([[x["v_peak"], x["tilt_deg"]] for x in r])
     y = np.array([bool(x["attached"]) for x in r], int)

@@ -20,6 +20,7 @@ from .. import rawformat as RF
 from . import mocap as M
 
 SETTLE_S = 0.5  # s after the step before the plateau counts as quasi-static
+EDGE_S = 0.02  # s kept clear of each command step (log timing jitter): a fit margin, not a protocol value
 
 
 def burst_rows(mc, sv, meta) -> list[dict]:
@@ -28,8 +29,8 @@ def burst_rows(mc, sv, meta) -> list[dict]:
     t, ts = mc.t.to_numpy(), sv.t.to_numpy()
     lab = meta["labels"]
     rows = []
-    for window, (lo, hi) in (("rest", (0.05, lab["t_up"] - 0.02)),
-                             ("hold", (lab["t_up"] + SETTLE_S, lab["t_down"] - 0.02))):
+    for window, (lo, hi) in (("rest", (0.05, lab["t_up"] - EDGE_S)),
+                             ("hold", (lab["t_up"] + SETTLE_S, lab["t_down"] - EDGE_S))):
         m, ms = (t > lo) & (t < hi), (ts > lo) & (ts < hi)
         if m.sum() < 3 or ms.sum() < 2:
             continue

@@ -1,14 +1,14 @@
 """Quasi-static hold model (paper IV-A): the pre-release configuration that starts a rollout.
 
-A recorded hold is the 50 Hz state history x_{t-20..t} up to the last frame before the S2 release
+A recorded hold is the state history x_{t-20..t} (the protocol's window history) up to the last frame before the S2 release
 (meta label t_s2) of a training-split dynamics group: the preload is set, S3 has been slackened and
 the curled tip has settled, and nothing fast has happened yet. The rollout from there covers the S2
 release, the delay tau and the S1 snap, so tau acts through the commands, as on the rig.
 
-Each hold is keyed by its program (rho1, rho2, rho3, s3) and stored in the canonical bearing PHI0:
-positions and the tip axis are rotated about the measured free-hanging axis n by PHI0 - bearing,
-and servo positions are kept as their offsets from the goals. A new command (rho, s3) aimed at
-PHI0 + dphi gets the inverse-distance average of the 12 nearest holds in (rho1, rho2, rho3, s3),
+Each hold is keyed by its program (rho1, rho2, rho3, s3) and stored in the canonical bearing phi0
+(the protocol's, config primitive.phi0_deg): positions and the tip axis are rotated about the
+measured free-hanging axis n by phi0 - bearing, and servo positions are kept as their offsets from
+the goals. A new command (rho, s3) aimed at phi0 + dphi gets the inverse-distance average of the 12 nearest holds in (rho1, rho2, rho3, s3),
 scaled by (1500, 1500, 1500, 1000) ticks with distances floored at 0.01, rotated by dphi, with the
 servo positions put back on its own goals. Support confidence C_h = 0.5 + 0.5 exp(-(d_mean/0.3)^2).
 """
@@ -20,8 +20,7 @@ import pandas as pd
 
 from .. import bearing as BR
 from ..resample import COMMAND_COLUMNS, STATE_COLUMNS
-from ..twin.protocols import PHI0_DEG
-from .model import AXIS, HISTORY, TIP
+from .model import AXIS, TIP
 
 KEYS = ("rho1", "rho2", "rho3", "s3")
 SCALE = np.array([1500.0, 1500.0, 1500.0, 1000.0])
@@ -55,9 +54,11 @@ def rotate_states(x: np.ndarray, deg, n: np.ndarray) -> np.ndarray:
     return x
 
 
-def bank(frames: pd.DataFrame, metas: dict[str, dict]) -> dict[str, np.ndarray]:
-    """Holds of the given groups, canonical: q (n, 4) scaled keys, x (n, 21, 21) x_{t-20..t} before
-    the S2 release (servo part: position - goal), n (3,) the hanging axis, session, group_ids."""
+def bank(frames: pd.DataFrame, metas: dict[str, dict], phi0_deg: float, history: int) -> dict[str, np.ndarray]:
+    """Holds of the given groups in the canonical bearing phi0_deg: q (n, 4) scaled keys, x (n,
+    history+1, 21) x_{t-20..t} before the S2 release (servo part: position - goal), n (3,) the
+    hanging axis, session, group_ids."""
+    HISTORY = history
     n = hanging_axis(frames)
     q, xs, sess, gids = [], [], [], []
     for gid, f in frames.groupby("group_id", sort=True):
@@ -70,7 +71,7 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict]) -> dict[str, np.ndarray]:
             continue
         X = f[STATE_COLUMNS].to_numpy(np.float64)[i - HISTORY:i + 1]
         U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - HISTORY:i + 1]
-        X = rotate_states(X, PHI0_DEG - float(m["program"]["bearing"]), n)
+        X = rotate_states(X, phi0_deg - float(m["program"]["bearing"]), n)
         X[:, SERVO] -= U
         q.append([m["program"][k] for k in KEYS])
         xs.append(X)

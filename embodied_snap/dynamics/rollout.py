@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .model import HISTORY, LOOKAHEAD, TIP, load
+from .model import TIP, load
 
 
 def default_device() -> str:
@@ -45,6 +45,7 @@ class Ensemble:
         self.models = list(models) if models is not None else [load(p, self.device) for p in paths]
         g = self.models[0].gru
         self.H, self.layers, self.n_in = g.hidden_size, g.num_layers, g.input_size
+        self.lookahead = self.models[0].lookahead
         H = self.H
         # Z columns: h_k starts at off[k], with a ones column just before it.
         self.off = [self.n_in + 1 + k * (H + 1) for k in range(self.layers)]
@@ -64,13 +65,14 @@ class Ensemble:
             n_h = 2 * torch.cat([one(bh[2 * H:]), wh[:, 2 * H:]])
             p["gates"].append([w.contiguous().to(self.device) for w in (rz, n_i, n_h)])
         p["head"] = (torch.cat([one(m.head.bias), m.head.weight.T]) * m.r_sd).contiguous().to(self.device)
-        rep = LOOKAHEAD + 1  # the frame holds u_{k..k+5}
+        rep = self.lookahead + 1  # the frame holds u_{k..k+5}
         p.update(x_mu=m.x_mu, x_sd=m.x_sd, v_sd=m.v_sd, u_mu=m.u_mu.repeat(rep), u_sd=m.u_sd.repeat(rep))
         return {k: v.to(self.device) if torch.is_tensor(v) else v for k, v in p.items()}
 
     @torch.inference_mode()
     def rollout(self, xs, us, horizon: int = 25, states: bool = False, parts=()) -> dict:
-        """xs (..., 21, 21): x_{t-20..t}; us (..., 20+horizon+4, 9): u_{t-19..t+horizon+4}; any
+        """xs (..., history+1, 21): x_{t-20..t}; us (..., history+horizon+lookahead-1, 9):
+        u_{t-19..t+horizon+4}; any
         leading batch shape, e.g. (candidates, targets). Returns tip (seeds, ..., horizon+1, 3)
         from x_t on, their mean, and disagreement = the per-step mean distance of the seeds' tips
         to the ensemble mean (m). Optional: states=True adds the full states (seeds, ...,
@@ -102,6 +104,7 @@ class Ensemble:
     def _seed(self, p: dict, xs, us, out) -> None:
         """One seed's rollout of the whole batch into out (horizon+1, B, 21)."""
         B, nx, H, off = xs.shape[0], xs.shape[-1], self.H, self.off
+        HISTORY, LOOKAHEAD = xs.shape[1] - 1, self.lookahead  # the history is what the caller gives
         Z = xs.new_zeros(B, self.width)
         Z[:, [o - 1 for o in off]] = 1
         rz, n_i, n_h = xs.new_empty(B, 2 * H), xs.new_empty(B, H), xs.new_empty(B, H)

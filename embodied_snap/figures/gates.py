@@ -9,8 +9,6 @@ import numpy as np
 
 from . import style
 
-DT = 0.02
-
 
 def _band(ax, x, per_seed: np.ndarray, color, label):
     """Median line and min-max band over seeds (rows)."""
@@ -18,7 +16,9 @@ def _band(ax, x, per_seed: np.ndarray, color, label):
     ax.plot(x, np.median(per_seed, 0), color=color, lw=1.1, label=label)
 
 
-def plot_gates(persistence: dict, validation: list[dict], gate: dict, pdf: str, png: str) -> None:
+def plot_gates(persistence: dict, validation: list[dict], gate: dict, dt: float, pdf: str, png: str) -> None:
+    """dt: the grid step of the horizons in `persistence` and `validation` (the protocol's)."""
+    DT = dt
     style.setup()
     fig, axes = plt.subplots(1, 3, figsize=(style.TEXT_WIDTH_IN, 2.2))
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.19, top=0.9, wspace=0.42)
@@ -35,7 +35,7 @@ def plot_gates(persistence: dict, validation: list[dict], gate: dict, pdf: str, 
         ax.plot([s[k]] * len(validation), [v["tip_mm"][k] for v in validation], "o", ms=2.5, color=c_gru)
     ax.set_xlabel("Horizon (s)")
     ax.set_ylabel("Validation tip error (mm)")
-    ax.set_xlim(0, s[-1] + 0.02)
+    ax.set_xlim(0, s[-1] + DT)  # one step of margin
     ax.set_ylim(0, None)
     style.panel_label(ax, "a")
 

@@ -1,7 +1,7 @@
 """Where the arm can strike, and the simulated target sets drawn from it (paper IV-B, V-A).
 
 The workspace is measured on the training-split dynamics groups only, in the canonical bearing
-(each group rotated about the hanging axis n by phi0 - its commanded bearing):
+phi0 (the protocol's; each group rotated about the hanging axis n by phi0 - its commanded bearing):
 - the strike cloud: the cup (tip + end effector along the tip axis) at the peak tip speed after the
   S1 release, and the cup's direction of travel there;
 - Delta_str: median strike bearing minus commanded bearing;
@@ -22,11 +22,11 @@ from .. import bearing as BR
 from ..dynamics.hold import release_row, rotate_states
 from ..dynamics.model import AXIS, TIP
 from ..resample import STATE_COLUMNS
-from ..twin.protocols import PHI0_DEG
 
 
-def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float, ee_m: float,
+def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float, ee_m: float, phi0_deg: float,
               bin_deg: float = 10.0) -> dict:
+    PHI0_DEG = float(phi0_deg)
     pts, dirs, dstr, prog = [], [], [], []
     for gid, f in frames.groupby("group_id", sort=True):
         m = metas[gid]
