@@ -103,7 +103,7 @@ rule windows:
             "results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS[wc.role]
         ),
         split="results/splits/split.csv",
-        code=code("windows"),
+        code=code("windows", "protocol"),
     output:
         "results/splits/windows_{role}.npz",
     log:
@@ -113,6 +113,6 @@ rule windows:
     conda:
         "../envs/esnap.yaml"
     params:
-        w=config["windows"],
+        protocol=protocol_params("windows"),
     script:
         "../workflow_scripts/windows.py"

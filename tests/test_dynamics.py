@@ -1,6 +1,8 @@
 """Dynamics model (issue 5): known answers for Eq. 3-4, the loss, the hold model, the gate, and a tiny
 training run. No timing asserts; the whole file runs in well under a minute."""
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -14,6 +16,7 @@ from embodied_snap.dynamics.rollout import Ensemble
 from embodied_snap.dynamics import model as M
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 from embodied_snap.windows import make_windows
+from paper_protocol import PROTO
 
 torch.set_num_threads(1)
 HISTORY, LOOKAHEAD, HORIZON = 20, 5, 25  # the paper's windows (config `windows`)
@@ -42,8 +45,8 @@ def synthetic_frames(n_groups=6, n=140, seed=0):
 @pytest.fixture(scope="module")
 def windows():
     f = synthetic_frames()
-    tr = make_windows(f[f.group_id < "g4"], fast_speed_mps=0.0)
-    va = make_windows(f[f.group_id >= "g4"])
+    tr = make_windows(f[f.group_id < "g4"], dataclasses.replace(PROTO.windows, fast_speed_mps=0.0))
+    va = make_windows(f[f.group_id >= "g4"], PROTO.windows)
     return tr, va
 
 
