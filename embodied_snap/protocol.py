@@ -58,6 +58,7 @@ class Rig:
     rated_speed_tick_s: float
     tendon_radius_m: tuple
     end_effector_m: float
+    arm_length_m: float  # S1+S2+S3 undeformed, without the end effector
 
 
 @dataclass(frozen=True)
@@ -95,7 +96,7 @@ def _section(config: dict, name: str) -> dict:
     if name == "rig":
         r = config["rig"]
         return dict(rated_speed_tick_s=float(r["rated_speed_tick_s"]), tendon_radius_m=list(r["tendon_radius_m"]),
-                    end_effector_m=r["end_effector_m"])
+                    end_effector_m=r["end_effector_m"], arm_length_m=float(r["arm_length_m"]))
     if name == "thresholds":
         return dict(attach_speed_mps=config["characterize"]["attach_speed_mps"])
     raise KeyError(f"no protocol section {name!r}; known: {', '.join(_CLASSES)}")

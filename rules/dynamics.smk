@@ -65,7 +65,7 @@ rule dynamics_persistence:
     conda:
         "../envs/esnap.yaml"
     params:
-        protocol=protocol_params("sampling"),
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_persistence.py"
 
@@ -84,7 +84,7 @@ rule dynamics_validate:
         "../envs/esnap.yaml"
     threads: DCFG["threads"]
     params:
-        protocol=protocol_params("sampling"),
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_validate.py"
 
@@ -106,7 +106,7 @@ rule dynamics_sealed_eval:
     threads: DCFG["threads"]
     params:
         seeds=DSEEDS,
-        protocol=protocol_params("sampling"),
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_sealed_eval.py"
 
@@ -155,7 +155,7 @@ rule dynamics_hold:
         "../envs/esnap.yaml"
     params:
         groups=HOLD_GROUPS,
-        protocol=protocol_params("primitive", "windows"),
+        protocol=protocol_params("primitive", "windows", "rig"),
     script:
         "../workflow_scripts/dynamics_hold.py"
 

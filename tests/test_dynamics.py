@@ -119,7 +119,7 @@ def test_hold_bank_and_loso():
     tip0, tip1 = x0[0, -1, 6:9], x1[0, -1, 6:9]
     assert np.linalg.norm(tip1) == pytest.approx(np.linalg.norm(tip0), rel=1e-5)
     assert (BR.bearing_deg(tip1, B["n"]) - BR.bearing_deg(tip0, B["n"])) % 360 == pytest.approx(90, abs=1e-3)
-    r = hold.leave_one_session_out(B)
+    r = hold.leave_one_session_out(B, PROTO.rig.arm_length_m)
     assert r["n_holds"] == 6 and r["n_sessions"] == 3 and r["tip_mm_median"] >= 0
 
 

@@ -26,6 +26,7 @@ def test_values_come_from_config():
     assert PROTO.primitive.phi0_deg == 210.0 and PROTO.primitive.s2_ramp_s == 0.13
     assert PROTO.primitive.timing_s == (0.45, 0.675)
     assert PROTO.rig.rated_speed_tick_s == 3140.0 and PROTO.thresholds.attach_speed_mps == 1.0
+    assert PROTO.rig.arm_length_m * 1e3 == 730.0  # the millimetres the tip errors were always divided by
     cfg = copy.deepcopy(CONFIG)
     cfg["resample"]["hz"], cfg["policy"]["ranges"]["tau"], cfg["rig"]["rated_speed_tick_s"] = 100, [0.5, 0.6], 3000
     p = protocol.load(cfg)

@@ -13,7 +13,7 @@ with tracked(snakemake):
     proto = from_params(snakemake.params.protocol)
     B = hold.bank(data.frames(snakemake.input.shards, snakemake.params.groups), data.metas(snakemake.input.metas),
                   proto.primitive.phi0_deg, proto.windows.history)
-    out = hold.leave_one_session_out(B)
+    out = hold.leave_one_session_out(B, proto.rig.arm_length_m)
     print(out, file=sys.stderr)
     save_windows(snakemake.output.bank, B)  # the same byte-stable .npz writer as the windows
     write_json(out, snakemake.output.summary)

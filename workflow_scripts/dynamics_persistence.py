@@ -10,9 +10,10 @@ from embodied_snap.windows import load_windows
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    dt = from_params(snakemake.params.protocol).sampling.dt
+    proto = from_params(snakemake.params.protocol)
+    dt, arm = proto.sampling.dt, proto.rig.arm_length_m
     W = load_windows(snakemake.input.validation)
     h = E.eval_horizon(dt)
-    out = E.summary(E.persistence_tip_mm(W, E.eligible(W, h), h), dt)
+    out = E.summary(E.persistence_tip_mm(W, E.eligible(W, h), h), dt, arm)
     print(out["at_s_mm"], file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -16,10 +16,11 @@ with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     model = load(snakemake.input.model)
     W = load_windows(snakemake.input.validation)
-    dt = from_params(snakemake.params.protocol).sampling.dt
+    proto = from_params(snakemake.params.protocol)
+    dt, arm = proto.sampling.dt, proto.rig.arm_length_m
     h = E.eval_horizon(dt)
     idx = E.eligible(W, h)
-    out = E.summary(E.model_tip_mm(model, W, idx, h), dt)
+    out = E.summary(E.model_tip_mm(model, W, idx, h), dt, arm)
     out["carry_gap"] = E.carry_gap(model, W, idx)
     print(out["at_s_mm"], out["carry_gap"], file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -15,7 +15,6 @@ import torch
 from .model import TIP
 from .train import batch, prepare
 
-ARM_LENGTH_MM = 730.0  # S1+S2+S3 undeformed, without the end effector (paper III-A)
 REPORT_S = (0.3, 0.5, 0.7)  # s: where the paper reads the error (Fig. 4a, claims); on any grid step
 
 
@@ -50,8 +49,10 @@ def model_tip_mm(model, W: dict, idx: np.ndarray, horizon: int, bs: int = 2048) 
     return np.concatenate(out) if out else np.zeros((0, horizon))
 
 
-def summary(err: np.ndarray, dt: float) -> dict:
-    """Mean tip error per horizon step and at the paper's 0.3/0.5/0.7 s, in mm and % of arm length."""
+def summary(err: np.ndarray, dt: float, arm_length_m: float) -> dict:
+    """Mean tip error per horizon step and at the paper's 0.3/0.5/0.7 s, in mm and % of the arm's
+    length (the protocol's rig.arm_length_m)."""
+    ARM_LENGTH_MM = arm_length_m * 1e3
     mean = err.mean(0)
     at = {f"{s:g}": float(mean[round(s / dt) - 1]) for s in REPORT_S}
     return {

@@ -116,9 +116,10 @@ def axis_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
 
 
-def leave_one_session_out(B: dict) -> dict:
+def leave_one_session_out(B: dict, arm_length_m: float) -> dict:
     """Each hold predicted from the holds of the other sessions (both canonical, i.e. compared at
-    the hold's own bearing): tip (mm) and axis (deg) errors of the terminal frame."""
+    the hold's own bearing): tip (mm, and % of the arm's length) and axis (deg) errors of the
+    terminal frame."""
     nh = len(B["q"])
     tip, ax, ch = np.full(nh, np.nan), np.full(nh, np.nan), np.full(nh, np.nan)
     for s in np.unique(B["session"]):
@@ -138,6 +139,6 @@ def leave_one_session_out(B: dict) -> dict:
         "tip_mm_mean": float(np.mean(tip[ok])),
         "axis_deg_median": float(np.median(ax[ok])),
         "axis_deg_mean": float(np.mean(ax[ok])),
-        "tip_pct_arm_median": float(np.median(tip[ok]) / 730.0 * 100),
+        "tip_pct_arm_median": float(np.median(tip[ok]) / (arm_length_m * 1e3) * 100),
         "c_h_median": float(np.median(ch[ok])),
     }
