@@ -193,7 +193,7 @@ def test_ensemble_rollout_shapes(tmp_path, windows, trained):
     ens = Ensemble(paths, device="cpu")
     W = T.prepare(va)
     xs, us, _ = T.batch(W, W["anchors"][:6])
-    out = ens.rollout(xs.reshape(2, 3, 21, 21), us.reshape(2, 3, *us.shape[1:]))
+    out = ens.rollout(xs.reshape(2, 3, 21, 21), us.reshape(2, 3, *us.shape[1:]), HORIZON)
     assert out["tip"].shape == (3, 2, 3, 26, 3) and out["disagreement"].shape == (2, 3, 26)
     np.testing.assert_allclose(out["disagreement"], 0, atol=1e-6)  # identical members agree
 
@@ -207,7 +207,7 @@ def test_stacked_ensemble_equals_each_model(windows, trained):
     ens = Ensemble(models=[trained[0], other], device="cpu")
     W = T.prepare(va)
     xs, us, _ = T.batch(W, W["anchors"][:32])
-    out = ens.rollout(xs, us)
+    out = ens.rollout(xs, us, HORIZON)
     with torch.inference_mode():
         for s, m in enumerate(ens.models):
             ref = m.rollout(xs, us, HORIZON)[..., M.TIP].numpy()

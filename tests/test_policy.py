@@ -45,7 +45,7 @@ def test_action_map_eq7_and_clamps():
     assert a["rho1"].tolist() == [2400, 3700, 3050] and a["dphi"].tolist() == [-25, 25, 0]
     assert a["s3"].tolist() == [0, 1800, 450]  # quadratic: the middle of u is a quarter of the range
     ws = dict(bin_lo_deg=180.0, bin_width_deg=10.0, rho_max=[[3000, 3000, 3000], [3500, 3200, 3300]])
-    c = actions.workspace_clamp(a, np.array([185.0, 195.0, 250.0]), ws)
+    c = actions.workspace_clamp(a, np.array([185.0, 195.0, 250.0]), ws, 0.9)
     assert c["rho1"].tolist() == pytest.approx([2400, 0.9 * 3500, 3050])  # 250 deg: last bin, under it
     assert actions.project_timing(np.array([0.3, 0.5, 0.9]), (0.45, 0.675)).tolist() == [0.45, 0.5, 0.675]
 

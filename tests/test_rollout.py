@@ -49,7 +49,7 @@ def test_mean_and_disagreement():
     ms, X, U = members()
     a = 40 + np.arange(5)
     xs, us = X[a[:, None] + np.arange(-20, 1)], U[a[:, None] + np.arange(-19, 25 + 5)]
-    out = Ensemble(models=ms, device="cpu").rollout(xs, us)
+    out = Ensemble(models=ms, device="cpu").rollout(xs, us, 25)
     tip = out["tip"]
     np.testing.assert_allclose(out["mean"], tip.mean(0), atol=1e-6)
     dis = np.linalg.norm(tip - tip.mean(0), axis=-1).mean(0)

@@ -46,7 +46,7 @@ def burst_rows(mc, sv, meta) -> list[dict]:
     return rows
 
 
-def fit_levers(rows, quantile: float = 0.9) -> dict:
+def fit_levers(rows, quantile: float) -> dict:
     """d_p/k (ticks/rad) for S1..S3 by quantile regression of w on Eq. 1's features and the load."""
     # Current of an unloaded servo: the median over the rests before the bursts.
     rest = [r["current"] for r in rows if r.get("window") == "rest"]

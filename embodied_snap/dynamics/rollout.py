@@ -70,7 +70,7 @@ class Ensemble:
         return {k: v.to(self.device) if torch.is_tensor(v) else v for k, v in p.items()}
 
     @torch.inference_mode()
-    def rollout(self, xs, us, horizon: int = 25, states: bool = False, parts=()) -> dict:
+    def rollout(self, xs, us, horizon: int, states: bool = False, parts=()) -> dict:
         """xs (..., history+1, 21): x_{t-20..t}; us (..., history+horizon+lookahead-1, 9):
         u_{t-19..t+horizon+4}; any
         leading batch shape, e.g. (candidates, targets). Returns tip (seeds, ..., horizon+1, 3)

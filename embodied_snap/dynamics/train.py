@@ -91,15 +91,17 @@ def train(
     Wtr: dict,
     Wva: dict,
     seed: int,
-    epochs: int = 30,
-    windows_per_epoch: int = 20000,
-    val_windows: int = 4000,
-    batch_size: int = 256,
-    lr: float = 2e-3,
-    patience: int = 5,
+    *,
+    epochs: int,
+    windows_per_epoch: int,
+    val_windows: int,
+    batch_size: int,
+    lr: float,
+    patience: int,
     log=print,
 ) -> tuple[Dynamics, list[dict]]:
-    """Fit one seed. Returns the model of the best validation epoch and the learning curve."""
+    """Fit one seed (sizes and optimiser settings: config `dynamics` and the budget's). Returns the
+    model of the best validation epoch and the learning curve."""
     seed_all(seed)
     rng = np.random.default_rng(seed)
     Wtr, Wva = prepare(Wtr), prepare(Wva)
