@@ -199,6 +199,6 @@ rule fig_gates:
     conda:
         "../envs/esnap.yaml"
     params:
-        protocol=protocol_params("sampling"),
+        protocol=protocol_params("sampling", "windows"),
     script:
         "../workflow_scripts/fig_gates.py"
