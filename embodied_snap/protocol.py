@@ -10,7 +10,8 @@ scripts rebuild the dataclasses with `from_params`.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
+from types import MappingProxyType
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,7 @@ class Primitive:
 
     phi0_deg: float  # the canonical bearing the primitive is validated around
     s2_ramp_s: float  # S2 is released over this long
-    ranges: dict  # action -> (low, high); tau's range is the timing set T of Eq. 8
+    ranges: MappingProxyType  # action -> (low, high); tau's range is the timing set T of Eq. 8
 
     @property
     def timing_s(self) -> tuple[float, float]:
@@ -77,7 +78,6 @@ class Protocol:
     thresholds: Thresholds | None = None
 
 
-_TYPES = {f.name: f.type for f in fields(Protocol)}
 _CLASSES = {"sampling": Sampling, "windows": Windows, "primitive": Primitive, "rig": Rig,
             "thresholds": Thresholds}
 
@@ -108,10 +108,11 @@ def params(config: dict, *sections: str) -> dict:
 
 
 def from_params(p: dict) -> Protocol:
-    """The dataclasses back from `params` (lists become tuples, so the objects stay immutable)."""
+    """The dataclasses back from `params` (lists become tuples and dicts read-only mappings, so the
+    objects stay immutable)."""
     def freeze(v):
         if isinstance(v, dict):
-            return {k: freeze(x) for k, x in v.items()}
+            return MappingProxyType({k: freeze(x) for k, x in v.items()})
         return tuple(freeze(x) for x in v) if isinstance(v, (list, tuple)) else v
 
     return Protocol(**{s: _CLASSES[s](**{k: freeze(v) for k, v in d.items()}) for s, d in p.items()})
@@ -120,10 +121,6 @@ def from_params(p: dict) -> Protocol:
 def load(config: dict) -> Protocol:
     """The whole protocol of a config."""
     return from_params(params(config))
-
-
-def as_dict(p: Protocol) -> dict:
-    return {k: asdict(v) for k, v in ((f, getattr(p, f)) for f in _TYPES) if v is not None}
 
 
 # The dynamics model's windows are counted in grid steps and the paper's report horizons

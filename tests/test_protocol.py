@@ -40,6 +40,8 @@ def test_frozen_and_params_round_trip():
     assert yaml.safe_load(yaml.safe_dump(p)) == p  # plain values: a Snakemake param
     q = protocol.from_params(p)
     assert q.sampling == PROTO.sampling and q.primitive == PROTO.primitive and q.rig is None
+    with pytest.raises(TypeError):
+        q.primitive.ranges["tau"] = (0.1, 0.2)
     with pytest.raises(KeyError):
         protocol.params(CONFIG, "nonsense")
 
