@@ -191,8 +191,7 @@ rule characterize_heldbase:
     params:
         raw=RAW,
         groups=HELD_GROUPS,
-        thresholds=dict(base_mm=2.0, neighbour_mm=2.0, residual_ticks=8.0),
-        window_s=0.1,
+        detectors=config["characterize"]["heldbase"],
     script:
         "../workflow_scripts/characterize_heldbase.py"
 
