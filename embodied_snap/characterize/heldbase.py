@@ -2,8 +2,9 @@
 
 Each detector sees only the past: it fires at the first sample where its signal leaves a
 lagged reference by more than its threshold; a detection counts if it fires within window_s of the
-labelled event (100 ms; config characterize.heldbase holds it and the thresholds). Detectors are not armed by the command program, so one whose signal also moves
-with the commanded motion fires on that. Detectors:
+labelled event (100 ms; config characterize.heldbase holds it and the thresholds). Detectors are
+not armed by the command program, so one whose signal also moves with the commanded motion fires
+on that. Detectors:
 - base: the tracked mount's displacement (mm);
 - neighbour: the displacement of the next tracked body down the arm (distal end of S1, mm);
 - servo residual: S1 servo present position minus the fitted first-order servo model (ticks);
