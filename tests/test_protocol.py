@@ -71,3 +71,19 @@ def test_workflow_stops_at_start_up_on_a_25_hz_grid(tmp_path):
     lines = [ln for ln in out.splitlines() if "resample.hz = 25" in ln]
     assert len(lines) == 1 and re.search(r"not supported by the dynamics stage", lines[0]), out[-2000:]
     assert not (tmp_path / "results").exists() and not (tmp_path / "raw_data").exists()
+
+
+def test_paper_values_only_feed_the_paper_column():
+    """reference/paper_values.yaml is an input of the claims tables and the twin's report alone, and
+    only embodied_snap/reference.py reads it: no result is computed from a paper value."""
+    readers = set()
+    for smk in (REPO / "rules").glob("*.smk"):
+        for block in re.split(r"\n(?=(?:rule|checkpoint) )", smk.read_text()):
+            m = re.match(r"(?:rule|checkpoint) (\w+):", block)
+            if m and "reference/paper_values.yaml" in block:
+                readers.add(m.group(1))
+    assert readers == {"table_characterize_claims", "table_dynamics_claims", "table_policy_claims", "twin_validation"}
+    code = [p for d in ("embodied_snap", "workflow_scripts") for p in (REPO / d).rglob("*.py")]
+    reads = re.compile(r"\bpaper_values\s*\(|import [^\n]*\bpaper_values\b")  # a call or an import
+    users = {p.relative_to(REPO).as_posix() for p in code if reads.search(p.read_text())}
+    assert users == {"embodied_snap/reference.py"}
