@@ -32,19 +32,19 @@ def trials(frames: pd.DataFrame, metas: dict[str, dict], after_s1: float, proto:
     """Rollout inputs of every sweep trial whose record covers its history and window: x (21, 21),
     u (20 + H + 4, 9), the measured tip (H + 1, 3), H = its window in steps. proto: its sampling
     and windows sections."""
-    DT, HISTORY, LOOKAHEAD = proto.sampling.dt, proto.windows.history, proto.windows.lookahead
+    dt, history, lookahead = proto.sampling.dt, proto.windows.history, proto.windows.lookahead
     out = []
     for gid, f in frames.groupby("group_id", sort=True):
         m = metas[gid]
         t = f["t"].to_numpy()
         i = release_row(t, m["labels"]["t_s2"])
-        H = int(np.ceil((m["labels"]["t_s1"] + after_s1 - t[i]) / DT))
-        if i < HISTORY or i + H + LOOKAHEAD - 1 >= len(t):
+        H = int(np.ceil((m["labels"]["t_s1"] + after_s1 - t[i]) / dt))
+        if i < history or i + H + lookahead - 1 >= len(t):
             continue
         X = f[STATE_COLUMNS].to_numpy(np.float32)
         U = f[COMMAND_COLUMNS].to_numpy(np.float32)
         out.append(dict(group_id=gid, session=m["session"], tau=float(m["program"]["tau"]), H=H,
-                        x=X[i - HISTORY:i + 1], u=U[i - HISTORY + 1:i + H + LOOKAHEAD],
+                        x=X[i - history:i + 1], u=U[i - history + 1:i + H + lookahead],
                         tip=X[i:i + H + 1, TIP].astype(np.float64)))
     return out
 

@@ -58,7 +58,6 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict], phi0_deg: float, history:
     """Holds of the given groups in the canonical bearing phi0_deg: q (n, 4) scaled keys, x (n,
     history+1, 21) x_{t-20..t} before the S2 release (servo part: position - goal), n (3,) the
     hanging axis, session, group_ids."""
-    HISTORY = history
     n = hanging_axis(frames)
     q, xs, sess, gids = [], [], [], []
     for gid, f in frames.groupby("group_id", sort=True):
@@ -67,10 +66,10 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict], phi0_deg: float, history:
             continue
         t = f["t"].to_numpy()
         i = release_row(t, m["labels"]["t_s2"])
-        if i < HISTORY:
+        if i < history:
             continue
-        X = f[STATE_COLUMNS].to_numpy(np.float64)[i - HISTORY:i + 1]
-        U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - HISTORY:i + 1]
+        X = f[STATE_COLUMNS].to_numpy(np.float64)[i - history:i + 1]
+        U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - history:i + 1]
         X = rotate_states(X, phi0_deg - float(m["program"]["bearing"]), n)
         X[:, SERVO] -= U
         q.append([m["program"][k] for k in KEYS])
@@ -79,7 +78,7 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict], phi0_deg: float, history:
         gids.append(gid)
     return {
         "q": np.asarray(q, np.float64).reshape(-1, 4) / SCALE,
-        "x": np.asarray(xs, np.float32).reshape(-1, HISTORY + 1, len(STATE_COLUMNS)),
+        "x": np.asarray(xs, np.float32).reshape(-1, history + 1, len(STATE_COLUMNS)),
         "n": n,
         "session": np.asarray(sess, dtype=str),
         "group_ids": np.asarray(gids, dtype=str),

@@ -92,17 +92,17 @@ class Dynamics(nn.Module):
         """Eq. 4 open loop. xs (B, history+1, 21): x_{t-20..t} (one frame before the history for its
         velocity); us (B, history+horizon+lookahead-1, 9): u_{t-19..t+horizon+4}. Returns
         x_hat_{t+1..t+horizon} (B, horizon, 21)."""
-        HISTORY, LOOKAHEAD = xs.shape[1] - 1, self.lookahead
-        x_next, h = self.encode(xs, us[:, :HISTORY + LOOKAHEAD])
+        history, lookahead = xs.shape[1] - 1, self.lookahead
+        x_next, h = self.encode(xs, us[:, :history + lookahead])
         out = [x_next]
         hist = list(xs.unbind(1))
         for k in range(1, horizon):
             hist.append(x_next)
             if carry:
-                x_next, h = self.step(hist[-1], hist[-2], us[:, HISTORY + k - 1:HISTORY + k + LOOKAHEAD], h)
+                x_next, h = self.step(hist[-1], hist[-2], us[:, history + k - 1:history + k + lookahead], h)
             else:
-                win = torch.stack(hist[-HISTORY - 1:], 1)
-                x_next, _ = self.encode(win, us[:, k:k + HISTORY + LOOKAHEAD])
+                win = torch.stack(hist[-history - 1:], 1)
+                x_next, _ = self.encode(win, us[:, k:k + history + lookahead])
             out.append(x_next)
         return torch.stack(out, 1)
 

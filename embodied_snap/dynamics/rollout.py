@@ -104,7 +104,7 @@ class Ensemble:
     def _seed(self, p: dict, xs, us, out) -> None:
         """One seed's rollout of the whole batch into out (horizon+1, B, 21)."""
         B, nx, H, off = xs.shape[0], xs.shape[-1], self.H, self.off
-        HISTORY, LOOKAHEAD = xs.shape[1] - 1, self.lookahead  # the history is what the caller gives
+        history, lookahead = xs.shape[1] - 1, self.lookahead  # the history is what the caller gives
         Z = xs.new_zeros(B, self.width)
         Z[:, [o - 1 for o in off]] = 1
         rz, n_i, n_h = xs.new_empty(B, 2 * H), xs.new_empty(B, H), xs.new_empty(B, H)
@@ -115,12 +115,12 @@ class Ensemble:
         res = xs.new_empty(B, nx)
         out[0] = xs[:, -1]
         x, xp = out[0], xs[:, -2]
-        for j in range(HISTORY + len(out) - 2):
+        for j in range(history + len(out) - 2):
             # The frame of step j: the history's own frames first, then the fed-back predictions.
-            a, b = (xs[:, j + 1], xs[:, j]) if j < HISTORY else (x, xp)
+            a, b = (xs[:, j + 1], xs[:, j]) if j < history else (x, xp)
             torch.sub(a, p["x_mu"], out=fx).div_(p["x_sd"])
             torch.sub(a, b, out=fv).div_(p["v_sd"])
-            torch.sub(us[:, j:j + LOOKAHEAD + 1].reshape(B, -1), p["u_mu"], out=fu).div_(p["u_sd"])  # u_{j..j+5}
+            torch.sub(us[:, j:j + lookahead + 1].reshape(B, -1), p["u_mu"], out=fu).div_(p["u_sd"])  # u_{j..j+5}
             for (zrz, zi, zh, h), (w_rz, w_ni, w_nh) in zip(views, p["gates"]):
                 torch.mm(zrz, w_rz, out=rz)
                 torch.mm(zi, w_ni, out=n_i)
@@ -128,8 +128,8 @@ class Ensemble:
                 rz.sigmoid_()
                 n = n_i.addcmul_(rz[:, :H], n_h).sigmoid_().mul_(2).sub_(1)
                 torch.lerp(n, h, rz[:, H:], out=h)  # (1 - z) n + z h, in place in Z
-            if j >= HISTORY - 1:
-                k = j - HISTORY + 2
+            if j >= history - 1:
+                k = j - history + 2
                 torch.mm(last, p["head"], out=res)
                 torch.mul(x, 2, out=out[k]).sub_(xp).add_(res)  # Eq. 3-4: f_cv + residual
                 xp, x = x, out[k]

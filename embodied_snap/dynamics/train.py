@@ -39,12 +39,12 @@ def batch(W: dict, anchors: np.ndarray, horizon: int | None = None):
     """Tensors of a rollout from anchors t: xs x_{t-20..t} (B, 21, 21), us u_{t-19..t+H+4},
     targets x_{t+1..t+H} (H: the windows' horizon unless given). The frame before the history
     repeats x_{t-19} at a group's first anchor."""
-    HISTORY, LOOKAHEAD = int(W["history"]), int(W["lookahead"])
+    history, lookahead = int(W["history"]), int(W["lookahead"])
     horizon = int(W["horizon"]) if horizon is None else horizon
     a = np.asarray(anchors)[:, None]
     g0 = W["_start"][a[:, 0]][:, None]
-    xi = np.maximum(a + np.arange(-HISTORY, 1), g0)
-    ui = a + np.arange(-HISTORY + 1, horizon + LOOKAHEAD)
+    xi = np.maximum(a + np.arange(-history, 1), g0)
+    ui = a + np.arange(-history + 1, horizon + lookahead)
     ti = a + np.arange(1, horizon + 1)
     X, U = W["X"], W["U"]
     return torch.from_numpy(X[xi]), torch.from_numpy(U[ui]), torch.from_numpy(X[ti])

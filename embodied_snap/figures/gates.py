@@ -20,7 +20,6 @@ def plot_gates(persistence: dict, validation: list[dict], gate: dict, dt: float,
                png: str) -> None:
     """dt: the grid step of the horizons in `persistence` and `validation`; horizon: the trained
     rollout length in steps (both the protocol's)."""
-    DT = dt
     style.setup()
     fig, axes = plt.subplots(1, 3, figsize=(style.TEXT_WIDTH_IN, 2.2))
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.19, top=0.9, wspace=0.42)
@@ -28,16 +27,16 @@ def plot_gates(persistence: dict, validation: list[dict], gate: dict, dt: float,
 
     # (a) tip error over the horizon; the trained horizon ends at 0.5 s, 0.7 s continues the rollout
     ax = axes[0]
-    s = np.array(persistence["h"]) * DT
+    s = np.array(persistence["h"]) * dt
     ax.plot(s, persistence["tip_mm"], color=c_pers, lw=1.1, label="Persistence")
     _band(ax, s, np.array([v["tip_mm"] for v in validation]), c_gru, f"GRU ({len(validation)} seeds)")
-    ax.axvline(horizon * DT, color="0.6", ls=":", lw=0.8)
+    ax.axvline(horizon * dt, color="0.6", ls=":", lw=0.8)
     for t in map(float, validation[0]["at_s_mm"]):  # the report horizons
-        k = round(t / DT) - 1
+        k = round(t / dt) - 1
         ax.plot([s[k]] * len(validation), [v["tip_mm"][k] for v in validation], "o", ms=2.5, color=c_gru)
     ax.set_xlabel("Horizon (s)")
     ax.set_ylabel("Validation tip error (mm)")
-    ax.set_xlim(0, s[-1] + DT)  # one step of margin
+    ax.set_xlim(0, s[-1] + dt)  # one step of margin
     ax.set_ylim(0, None)
     style.panel_label(ax, "a")
 

@@ -23,18 +23,17 @@ def strike(cup: np.ndarray, tip: np.ndarray, p: np.ndarray, normal: np.ndarray, 
     """cup, tip (N, K+1, 3) predicted (ensemble mean) on a grid of step dt; target p and unit face
     normal (N, 3); k_s1 (N,) the first step after the S1 release. Closest approach is searched from
     k_s1 on."""
-    DT = dt
     rel = cup - p[:, None]
     gap = (rel * normal[:, None]).sum(-1)
     lat = np.linalg.norm(rel - gap[..., None] * normal[:, None], axis=-1)
     dist = np.linalg.norm(rel, axis=-1)
     k = np.arange(cup.shape[1])
     k_ca = np.argmin(np.where(k[None] >= k_s1[:, None], dist, np.inf), 1)
-    v = np.linalg.norm(np.diff(tip, axis=1), axis=-1) / DT  # speed over step k -> k+1
+    v = np.linalg.norm(np.diff(tip, axis=1), axis=-1) / dt  # speed over step k -> k+1
     k_pk = np.argmax(v, 1)
     i = np.arange(len(p))
     return dict(lateral_m=lat[i, k_ca], gap_m=gap[i, k_ca], miss_m=dist[i, k_ca],
-                v_pk_mps=v[i, k_pk], t_pk_s=(k_pk + 0.5) * DT, t_ca_s=k_ca * DT)
+                v_pk_mps=v[i, k_pk], t_pk_s=(k_pk + 0.5) * dt, t_ca_s=k_ca * dt)
 
 
 def reward(s: dict, c_h, p_snap, disagreement, c: dict) -> np.ndarray:

@@ -33,11 +33,11 @@ class Simulator:
         self.dt, self.history = proto.sampling.dt, proto.windows.history
         self.phi0, self.s2_ramp = proto.primitive.phi0_deg, proto.primitive.s2_ramp_s
         self.timing = proto.primitive.timing_s
-        DT = self.dt
-        self.anchor_s = -DT / 2  # the hold's last frame lies half a frame before the S2 release starts
-        self.H = int(np.ceil((self.timing[1] + after_s1 - self.anchor_s) / DT))
+        dt = self.dt
+        self.anchor_s = -dt / 2  # the hold's last frame lies half a frame before the S2 release starts
+        self.H = int(np.ceil((self.timing[1] + after_s1 - self.anchor_s) / dt))
         # goal times relative to the S2 release: u_{t-20} .. u_{t+H+4} around the anchor t
-        self.t_u = self.anchor_s + DT * np.arange(-self.history, self.H + ensemble.lookahead)
+        self.t_u = self.anchor_s + dt * np.arange(-self.history, self.H + ensemble.lookahead)
 
     def commands(self, act: dict) -> dict:
         """Workspace clamp in the commanded bearing, then Eq. 8."""
