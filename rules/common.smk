@@ -13,8 +13,9 @@ BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
 
 # A protocol some stage cannot run stops the workflow here, in one line naming the stage.
-if protocol.unsupported(config):
-    raise WorkflowError(protocol.unsupported(config))
+UNSUPPORTED = protocol.unsupported(config)
+if UNSUPPORTED:
+    raise WorkflowError(UNSUPPORTED)
 
 
 def protocol_params(*sections):
