@@ -16,6 +16,8 @@ from ..primitive import release_goals, section_goals
 from ..protocol import Protocol
 
 PLAN_MARGIN = 0.9  # preload ramps are planned at this fraction of the rated speed: under the ceiling
+# The simulated operator's operating point: where release-mode, sweep and held-base trials sit
+# (the pipeline finds its own operating point from P_snap; config has none).
 OPERATING = dict(rho1=3100.0, rho2=2750.0, rho3=2900.0, s3=30.0, dphi=0.0, tau=0.55)
 SWEEP_LOW = (0.15, 0.30)  # delay-sweep delays; none in (0.30, 0.45), as in the paper
 SWEEP_HIGH = (0.45, 0.50, 0.55, 0.60, 0.65, 0.70, 0.75)
@@ -23,8 +25,6 @@ T_HANG = 0.25  # s of free hanging before anything moves
 T_SETTLE = 0.5  # s held at full preload
 T_S2 = 1.0  # s from S3 slack to the start of the S2 release: the latched tip settles
 T_AFTER = 1.1  # s recorded after the S1 release
-
-__all__ = ["OPERATING", "release_goals", "section_goals", "sweep_tau", "primitive", "direct_release", "burst"]
 
 
 def sweep_tau(n: int) -> float:
