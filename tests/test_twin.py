@@ -17,6 +17,8 @@ from embodied_snap.twin.acquire import acquire_groups
 from embodied_snap.twin.phenomena import phenomena
 from paper_protocol import PROTO
 
+DT = 0.001  # config twin.dt
+
 SEED = 20261123
 GROUPS = pd.DataFrame(
     [
@@ -37,7 +39,7 @@ GROUPS = pd.DataFrame(
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):
     d = tmp_path_factory.mktemp("raw")
-    rows = acquire_groups(GROUPS, d, seed=SEED, proto=PROTO, progress=False)
+    rows = acquire_groups(GROUPS, d, seed=SEED, proto=PROTO, dt=DT, progress=False)
     return d, rows
 
 
@@ -125,14 +127,14 @@ def test_same_seed_same_bytes_and_group_independence(raw, tmp_path):
     d, _ = raw
     pick = GROUPS[GROUPS.group_id.isin(["dly_0004", "rel_0037"])]
     # alone, in another order and another directory: identical files
-    acquire_groups(pick.iloc[::-1], tmp_path, seed=SEED, proto=PROTO, progress=False)
+    acquire_groups(pick.iloc[::-1], tmp_path, seed=SEED, proto=PROTO, dt=DT, progress=False)
     for gid in pick.group_id:
         for name in RF.GROUP_FILES:
             a = (RF.group_dir(d, gid) / name).read_bytes()
             b = (RF.group_dir(tmp_path, gid) / name).read_bytes()
             assert a == b, (gid, name)
     other = tmp_path / "other"
-    acquire_groups(pick.iloc[:1], other, seed=SEED + 1, proto=PROTO, progress=False)
+    acquire_groups(pick.iloc[:1], other, seed=SEED + 1, proto=PROTO, dt=DT, progress=False)
     gid = pick.group_id.iloc[0]
     assert (RF.group_dir(d, gid) / "mocap.parquet").read_bytes() != (RF.group_dir(other, gid) / "mocap.parquet").read_bytes()
 

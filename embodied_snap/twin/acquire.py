@@ -121,7 +121,7 @@ def has_target(row: dict) -> bool:
     return es in ("attachment", "delay_sweep") or (es == "dynamics" and cat in ("target", "sealed"))
 
 
-def simulate_group(row: dict, seed: int, proto: Protocol, dt: float = 0.001) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+def simulate_group(row: dict, seed: int, proto: Protocol, dt: float) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
     gid, session = str(row["group_id"]), str(row["session"])
     r = TR.rng_for(seed, "group", gid)
     sess = TR.session_params(seed, session)
@@ -200,11 +200,11 @@ def _recorded_at(gid: str, session: str) -> str:
     return (T0 + _dt.timedelta(days=day, seconds=90 * k)).isoformat()
 
 
-def acquire_groups(groups: "pd.DataFrame", raw_dir: str | Path, seed: int, proto: Protocol, dt: float = 0.001,
+def acquire_groups(groups: "pd.DataFrame", raw_dir: str | Path, seed: int, proto: Protocol, dt: float,
                    progress: bool = True) -> list[dict]:
     """Simulate and write each group (rows: group_id, evidence_set, category, session; extra
     columns ignored) via rawformat.write_group under the protocol `proto` (its primitive, rig and
-    thresholds sections). Returns one index row per group."""
+    thresholds sections), integrated at dt (config twin.dt). Returns one index row per group."""
     rows = groups.to_dict("records") if isinstance(groups, pd.DataFrame) else list(groups)
     it = rows
     if progress:
