@@ -23,7 +23,9 @@ import time
 import numpy as np
 import torch
 
-from embodied_snap.dynamics.model import HISTORY, LOOKAHEAD, N_U, N_X, Dynamics, load
+from embodied_snap.dynamics.model import N_U, N_X, Dynamics, load
+
+HISTORY, LOOKAHEAD = 20, 5  # the paper's windows (config `windows`): what the benchmark times
 from embodied_snap.dynamics.rollout import Ensemble
 
 
@@ -69,7 +71,7 @@ def main() -> None:
     else:
         stats = {k: np.ones(n, np.float32) if "sd" in k else np.zeros(n, np.float32)
                  for k, n in (("x_mu", N_X), ("x_sd", N_X), ("v_sd", N_X), ("u_mu", N_U), ("u_sd", N_U), ("r_sd", N_X))}
-        models = [Dynamics(stats).to(dev).eval() for _ in range(3)]
+        models = [Dynamics(stats, LOOKAHEAD).to(dev).eval() for _ in range(3)]
     B = a.candidates * a.targets
     ens = Ensemble(models=models, device=dev)  # the policy-search API
     peak = matmul_peak(dev)

@@ -19,6 +19,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from fakerig import write_fake_raw  # noqa: E402
 
 from embodied_snap.resample import resample_group  # noqa: E402
+
+HZ, MAX_GAP_S = 50.0, 0.1  # config resample: the grid the benchmark times
 from embodied_snap.validate import validate_group  # noqa: E402
 
 
@@ -42,9 +44,9 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as d:
         ids = [f"dyn_{i + 1:04d}" for i in range(a.groups)]
         write_fake_raw(d, ids, duration_s=a.duration)
-        resample_group(d, ids[0])  # warm-up: imports, first parquet read
-        rows = sum(len(resample_group(d, g)) for g in ids)
-        runs = [("resample", lambda g: resample_group(d, g))]
+        resample_group(d, ids[0], HZ, MAX_GAP_S)  # warm-up: imports, first parquet read
+        rows = sum(len(resample_group(d, g, HZ, MAX_GAP_S)) for g in ids)
+        runs = [("resample", lambda g: resample_group(d, g, HZ, MAX_GAP_S))]
         if a.validate:
             runs.append(("validate", lambda g: validate_group(d, g)))
         print(f"{a.groups} fakerig groups of {a.duration:g} s ({rows // a.groups} rows at 50 Hz each)")

@@ -18,6 +18,7 @@ import yaml
 
 from embodied_snap import rawformat as RF
 from embodied_snap.plan import twin_plan
+from embodied_snap.protocol import load
 from embodied_snap.twin.acquire import acquire_groups, nominal_strike
 
 
@@ -30,10 +31,11 @@ def main() -> None:
     cfg = yaml.safe_load(open(a.config))
     plan = twin_plan(cfg["budgets"]["paper"]["groups"], cfg["sessions"])
     pick = plan.groupby(["evidence_set", "category"], sort=False).head(a.per_category)
-    nominal_strike(a.dt)  # once per process; not counted per group
+    proto = load(cfg)
+    nominal_strike(a.dt, proto)  # once per process; not counted per group
     with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter()
-        rows = acquire_groups(pick, d, seed=cfg["seed"], dt=a.dt, progress=False)
+        rows = acquire_groups(pick, d, seed=cfg["seed"], proto=proto, dt=a.dt, progress=False)
         wall = time.perf_counter() - t0
         sim_s = 0.0
         per_cat = {}

@@ -21,8 +21,10 @@ def _config(path: str, budget: str | None) -> dict:
 def _acquire(args):
     from .twin.acquire import acquire_groups
 
-    part, raw, seed, dt = args
-    return acquire_groups(part, raw, seed=seed, dt=dt, progress=False)
+    from .protocol import from_params
+
+    part, raw, seed, proto, dt = args
+    return acquire_groups(part, raw, seed=seed, proto=from_params(proto), dt=dt, progress=False)
 
 
 def cmd_twin(a) -> int:
@@ -30,6 +32,7 @@ def cmd_twin(a) -> int:
     import time
     from multiprocessing import Pool
 
+    from . import protocol
     from .plan import load_plan
     from .rawformat import write_index, write_json
     from .twin.truth import truth
@@ -42,11 +45,12 @@ def cmd_twin(a) -> int:
     if a.action == "phenomena":
         from .twin.phenomena import phenomena
 
-        print(json.dumps(phenomena(raw, plan), indent=1))
+        print(json.dumps(phenomena(raw, plan, protocol.load(cfg)), indent=1))
         return 0
     t0 = time.perf_counter()
     # Every group's randomness comes from (seed, group_id) alone, so any partition gives the same bytes.
-    parts = [(plan.iloc[k :: a.jobs], raw, cfg["seed"], cfg["twin"]["dt"]) for k in range(a.jobs)]
+    proto = protocol.params(cfg, "primitive", "rig", "thresholds")
+    parts = [(plan.iloc[k :: a.jobs], raw, cfg["seed"], proto, cfg["twin"]["dt"]) for k in range(a.jobs)]
     with Pool(a.jobs) as pool:
         rows = [r for part in pool.map(_acquire, parts) for r in part]
     write_index(rows, raw / "index.csv")

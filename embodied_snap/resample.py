@@ -74,8 +74,9 @@ def _track(mocap: dict, body: str, tg: np.ndarray, max_gap_s: float, path, gid: 
     return p, q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def resample_group(raw_dir, group_id: str, hz: float = 50.0, max_gap_s: float = 0.1) -> pd.DataFrame:
-    """One group on the `hz` grid: group_id, t, STATE_COLUMNS, COMMAND_COLUMNS (float32)."""
+def resample_group(raw_dir, group_id: str, hz: float, max_gap_s: float) -> pd.DataFrame:
+    """One group on the `hz` grid (config resample.hz), mocap dropouts up to max_gap_s bridged:
+    group_id, t, STATE_COLUMNS, COMMAND_COLUMNS (float32)."""
     paths = group_paths(raw_dir, group_id)
     mocap = _columns(
         paths["mocap"], ["t"] + [f"{b}_{f}" for b in TRACKED_BODIES for f in (*_POS, *_QUAT, "valid")]
@@ -104,7 +105,7 @@ def resample_group(raw_dir, group_id: str, hz: float = 50.0, max_gap_s: float = 
     return df
 
 
-def resample_shard(raw_dir, group_ids, hz: float = 50.0, max_gap_s: float = 0.1) -> pd.DataFrame:
+def resample_shard(raw_dir, group_ids, hz: float, max_gap_s: float) -> pd.DataFrame:
     """Groups of a shard, each resampled on its own, one after the other."""
     frames = [resample_group(raw_dir, g, hz, max_gap_s) for g in group_ids]
     return pd.concat(frames, ignore_index=True) if frames else _empty_frame()

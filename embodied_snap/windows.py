@@ -1,7 +1,8 @@
-"""Training windows over the 50 Hz frames (paper IV-A), stored compactly.
+"""Training windows over the resampled frames (paper IV-A), stored compactly.
 
 A window is an anchor row t of one group: history x[t-19..t], commands u[t-19..t+5], targets
-x[t+1..t+25], and for the open-loop rollout commands up to u[t+24+5]. Frames are stored once
+x[t+1..t+25], and for the open-loop rollout commands up to u[t+24+5] (the lengths are the
+protocol's, config `windows`). Frames are stored once
 (X, U) with the anchors as row indices, so overlapping windows cost no copies. Windows never
 cross groups: every anchor's whole span lies inside its own group's rows.
 """
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .protocol import Windows
 from .resample import COMMAND_COLUMNS, STATE_COLUMNS
 
 TIP_COLUMNS = ["tip_x", "tip_y", "tip_z"]
@@ -27,16 +29,11 @@ def window_span(history: int, lookahead: int, horizon: int) -> tuple[int, int]:
     return history - 1, max(horizon, horizon - 1 + lookahead)
 
 
-def make_windows(
-    frames: pd.DataFrame,
-    history: int = 20,
-    lookahead: int = 5,
-    horizon: int = 25,
-    stride: int = 1,
-    snap_speed_mps: float = 1.0,
-    fast_speed_mps: float = 0.3,
-) -> dict[str, np.ndarray]:
-    """X (N,21), U (N,9), group (N,), group_ids (G,), t (N,), anchors (W,), snap, fast, tip_speed_max (W,)."""
+def make_windows(frames: pd.DataFrame, windows: Windows) -> dict[str, np.ndarray]:
+    """X (N,21), U (N,9), group (N,), group_ids (G,), t (N,), anchors (W,), snap, fast, tip_speed_max (W,),
+    and the window lengths, so that training and evaluation read them from the file."""
+    history, lookahead, horizon, stride = windows.history, windows.lookahead, windows.horizon, windows.stride
+    snap_speed_mps, fast_speed_mps = windows.snap_speed_mps, windows.fast_speed_mps
     # Sorted so that the same groups give the same arrays in whatever order the shards came.
     f = frames.sort_values(["group_id", "t"], kind="stable").reset_index(drop=True)
     group_ids, group = np.unique(f["group_id"].to_numpy(dtype=str), return_inverse=True)

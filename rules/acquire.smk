@@ -18,6 +18,7 @@ checkpoint twin_acquire:
         groups=lambda wc: select(shard=wc.shard).to_dict("records"),
         raw=RAW,
         seed=config["seed"],
+        protocol=protocol_params("primitive", "rig", "thresholds"),
         dt=config["twin"]["dt"],
     script:
         "../workflow_scripts/twin_acquire.py"
@@ -72,6 +73,7 @@ rule twin_phenomena:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
+        protocol=protocol_params("primitive", "rig", "thresholds"),
         groups=select(evidence_set=PHENOMENA_SETS)[
             ["group_id", "evidence_set", "category", "session"]
         ].to_dict("records"),

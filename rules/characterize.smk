@@ -36,12 +36,11 @@ rule characterize_kinematics:
 
 
 rule characterize_servo:
-    """First-order fit over all calibration bursts; Eq. 2 ceilings from the rated speed."""
+    """First-order fit over all calibration bursts; Eq. 2 ceilings from the rated speed (config)."""
     input:
         raw=raw_of(**CAL),
         valid=validated(**CAL),
         kinematics=f"{CHAR}/kinematics.json",
-        reference="reference/paper_values.yaml",
         code=imports("characterize_servo"),
     output:
         f"{CHAR}/servo.json",
@@ -54,6 +53,7 @@ rule characterize_servo:
     params:
         raw=RAW,
         groups=CAL_GROUPS,
+        protocol=protocol_params("rig"),
     script:
         "../workflow_scripts/characterize_servo.py"
 
@@ -78,6 +78,7 @@ rule characterize_release:
         groups=select(evidence_set="release_mode")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/characterize_release.py"
 
@@ -101,6 +102,7 @@ rule characterize_attachment:
         groups=select(evidence_set="attachment")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/characterize_attachment.py"
 
@@ -125,6 +127,7 @@ rule characterize_snap:
         groups=select(**SNAP_GROUPS)[["group_id", "category", "session"]].to_dict(
             "records"
         ),
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/characterize_snap.py"
 
@@ -168,8 +171,7 @@ rule characterize_heldbase:
     params:
         raw=RAW,
         groups=HELD_GROUPS,
-        thresholds=dict(base_mm=2.0, neighbour_mm=2.0, residual_ticks=8.0),
-        window_s=0.1,
+        detectors=config["characterize"]["heldbase"],
     script:
         "../workflow_scripts/characterize_heldbase.py"
 
@@ -220,6 +222,7 @@ rule fig_limits:
         "../envs/esnap.yaml"
     params:
         seed=config["seed"],
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/fig_limits.py"
 
@@ -241,5 +244,7 @@ rule fig_snap:
         "logs/fig_snap.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        protocol=protocol_params("thresholds"),
     script:
         "../workflow_scripts/fig_snap.py"

@@ -4,6 +4,7 @@ import sys
 # The package beside the Snakefile, installed or not.
 sys.path.insert(0, workflow.basedir)
 
+from embodied_snap import protocol
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import group_paths
@@ -11,6 +12,17 @@ from embodied_snap.rawformat import group_paths
 RAW = config["raw_data"]["dir"]
 BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
+
+# A protocol some stage cannot run stops the workflow here, in one line naming the stage.
+UNSUPPORTED = protocol.unsupported(config)
+if UNSUPPORTED:
+    raise WorkflowError(UNSUPPORTED)
+
+
+def protocol_params(*sections):
+    """The protocol sections a job uses, as a param: a changed value reruns exactly those jobs."""
+    return protocol.params(config, *sections)
+
 
 try:
     PLAN = load_plan(config, RAW)

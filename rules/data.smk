@@ -115,6 +115,6 @@ rule windows:
     conda:
         "../envs/esnap.yaml"
     params:
-        w=config["windows"],
+        protocol=protocol_params("windows"),
     script:
         "../workflow_scripts/windows.py"

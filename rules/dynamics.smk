@@ -59,6 +59,8 @@ rule dynamics_persistence:
         "logs/dynamics/persistence.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_persistence.py"
 
@@ -76,6 +78,8 @@ rule dynamics_validate:
     conda:
         "../envs/esnap.yaml"
     threads: DCFG["threads"]
+    params:
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_validate.py"
 
@@ -97,6 +101,7 @@ rule dynamics_sealed_eval:
     threads: DCFG["threads"]
     params:
         seeds=DSEEDS,
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_sealed_eval.py"
 
@@ -118,6 +123,7 @@ rule dynamics_gate:
     params:
         seeds=DSEEDS,
         after_s1=DCFG["after_s1_s"],
+        protocol=protocol_params("sampling", "windows"),
     script:
         "../workflow_scripts/dynamics_gate.py"
 
@@ -138,6 +144,7 @@ rule dynamics_hold:
         "../envs/esnap.yaml"
     params:
         groups=HOLD_GROUPS,
+        protocol=protocol_params("primitive", "windows", "rig"),
     script:
         "../workflow_scripts/dynamics_hold.py"
 
@@ -180,5 +187,7 @@ rule fig_gates:
         "logs/fig_gates.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        protocol=protocol_params("sampling", "windows"),
     script:
         "../workflow_scripts/fig_gates.py"

@@ -18,7 +18,10 @@ SIMULATOR = dict(
     workspace=f"{POL}/workspace.json",
 )
 SIM_PARAMS = dict(
-    policy=PCFG, after_s1=DCFG["after_s1_s"], ee_m=config["rig"]["end_effector_m"]
+    policy=PCFG,
+    after_s1=DCFG["after_s1_s"],
+    ee_m=config["rig"]["end_effector_m"],
+    protocol=protocol_params("sampling", "windows", "primitive"),
 )
 
 
@@ -43,6 +46,7 @@ rule policy_workspace:
         groups=HOLD_GROUPS,
         after_s1=DCFG["after_s1_s"],
         ee_m=config["rig"]["end_effector_m"],
+        protocol=protocol_params("primitive"),
     script:
         "../workflow_scripts/policy_workspace.py"
 
@@ -167,6 +171,7 @@ rule policy_summary:
         budget_evaluations=PBUDGET["generations"]
         * PBUDGET["popsize"]
         * PBUDGET["targets_per_candidate"],
+        protocol=protocol_params("primitive"),
     script:
         "../workflow_scripts/policy_summary.py"
 

@@ -113,7 +113,7 @@ def test_release_summary():
     rows = [dict(category="direct", v_peak=v, rate_peak=[0, 0, 0]) for v in (0.7, 0.72, 0.75)]
     rows += [dict(category="ramped", v_peak=v, rate_peak=[0, 0, 0]) for v in (0.8, 1.4)]
     rows += [dict(category="instantaneous", v_peak=v, rate_peak=[2.0, 4.0, 6.0]) for v in (0.9, 1.5, 1.6, 1.7)]
-    out = release.summarize(rows, [1.0, 2.0, 3.0])
+    out = release.summarize(rows, [1.0, 2.0, 3.0], 1.0)
     assert out["direct_range_mps"] == [0.7, 0.75]
     assert out["instant_fraction_over_1mps"] == 0.75
     assert out["operating_rate_over_ceiling"] == pytest.approx([2.0, 2.0, 2.0])
@@ -131,7 +131,7 @@ def test_attachment_model_separable_and_counts():
         v, tilt = rng.uniform(0.6, 1.8), rng.uniform(0, 90)
         rows.append(dict(v_peak=v, tilt_deg=tilt, lateral_m=rng.uniform(0, 0.3), session=f"s{i % 6}",
                          attached=bool(v > 1.0 and tilt < 60)))
-    out = attachment.fit(rows)
+    out = attachment.fit(rows, 1.0)
     assert out["auc_grouped_cv"] > 0.9
     assert out["attached_below_1mps"] == 0
     near = [r for r in rows if r["lateral_m"] <= 0.15 and r["v_peak"] > 1.0]
@@ -155,7 +155,7 @@ def test_snap_classifier_known_region(tmp_path):
     for i in range(300):
         r1, r2 = rng.uniform(2400, 3700), rng.uniform(2100, 3300)
         rows.append(dict(rho1=r1, rho2=r2, session=f"s{i % 6}", v_peak=1.5 if r1 + r2 > 5800 else 0.7))
-    out = snap.fit(rows, grid_n=61)
+    out = snap.fit(rows, 1.0, grid_n=61)
     assert out["auc_grouped_cv"] > 0.95
     # true area with r1 + r2 > 5800 over the box (geometry), the P > 0.8 part sits inside it
     g1, g2 = np.meshgrid(np.linspace(*out["box"][0], 61), np.linspace(*out["box"][1], 61))
@@ -171,7 +171,7 @@ def test_snap_classifier_known_region(tmp_path):
 
 def test_snap_single_class_is_flagged():
     rows = [dict(rho1=3000.0 + i, rho2=2700.0 + i, session="s1", v_peak=1.5) for i in range(5)]
-    out = snap.fit(rows, grid_n=11)
+    out = snap.fit(rows, 1.0, grid_n=11)
     assert out["degenerate"] and np.isnan(out["auc_grouped_cv"])
     assert out["fraction_box_p_gt_0p8"] == 1.0
 

@@ -1,6 +1,8 @@
 """Dynamics model (issue 5): known answers for Eq. 3-4, the loss, the hold model, the gate, and a tiny
 training run. No timing asserts; the whole file runs in well under a minute."""
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -9,25 +11,28 @@ import torch
 from embodied_snap import bearing as BR
 from embodied_snap.dynamics import evaluate, gate, hold
 from embodied_snap.dynamics import train as T
-from embodied_snap.dynamics.model import HORIZON, TIP, Dynamics, f_cv, n_params, norm_stats
+from embodied_snap.dynamics.model import TIP, Dynamics, f_cv, n_params, norm_stats
 from embodied_snap.dynamics.rollout import Ensemble
 from embodied_snap.dynamics import model as M
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 from embodied_snap.windows import make_windows
+from paper_protocol import PROTO
 
 torch.set_num_threads(1)
+HISTORY, LOOKAHEAD, HORIZON = 20, 5, 25  # the paper's windows (config `windows`)
+DT = 0.02  # 50 Hz (config resample.hz)
 
 
 @pytest.fixture(scope="module")
 def windows(synthetic_frames):
     f = synthetic_frames()
-    tr = make_windows(f[f.group_id < "g4"], fast_speed_mps=0.0)
-    va = make_windows(f[f.group_id >= "g4"])
+    tr = make_windows(f[f.group_id < "g4"], dataclasses.replace(PROTO.windows, fast_speed_mps=0.0))
+    va = make_windows(f[f.group_id >= "g4"], PROTO.windows)
     return tr, va
 
 
 def test_gru_parameter_count():
-    m = Dynamics(norm_stats(np.ones((5, 21), np.float32), np.ones((5, 9), np.float32), np.zeros(5)))
+    m = Dynamics(norm_stats(np.ones((5, 21), np.float32), np.ones((5, 9), np.float32), np.zeros(5)), LOOKAHEAD)
     H, n_in = 96, 2 * 21 + 6 * 9
     per_layer = lambda i: 3 * H * (i + H) + 2 * 3 * H  # noqa: E731  W_ih, W_hh, two biases
     assert n_params(m.gru) == per_layer(n_in) + per_layer(H) == 111_744
@@ -39,7 +44,7 @@ def test_cv_prior_exact_on_constant_velocity():
     rng = np.random.default_rng(1)
     stats = norm_stats(rng.normal(size=(50, 21)).astype(np.float32), rng.normal(size=(50, 9)).astype(np.float32),
                        np.zeros(50))
-    m = Dynamics(stats)
+    m = Dynamics(stats, LOOKAHEAD)
     x0, v = torch.randn(4, 1, 21), torch.randn(4, 1, 21) * 0.01
     k = torch.arange(0, 21 + HORIZON, dtype=torch.float32)[None, :, None]
     xs = x0 + v * k  # x_{t-20} .. x_{t+25}
@@ -50,7 +55,7 @@ def test_cv_prior_exact_on_constant_velocity():
 
 
 def test_loss_weights():
-    w = T.step_weights()
+    w = T.step_weights(HORIZON)
     assert len(w) == 25 and float(w.mean()) == pytest.approx(1.0)
     assert float(w[0] / w[3]) == pytest.approx(2.0)  # h^-1/2: h=1 vs h=4
     f = T.window_factors(np.array([True, False, False]), np.array([False, True, False]))
@@ -77,7 +82,7 @@ def test_hold_bank_and_loso(synthetic_frames):
     metas = {f"g{g}": dict(session=f"s{g % 3}", labels=dict(t_s2=1.5),
                            program=dict(rho1=2500 + 100 * g, rho2=2500, rho3=2500, s3=0, bearing=210.0))
              for g in range(6)}
-    B = hold.bank(f, metas)
+    B = hold.bank(f, metas, 210.0, HISTORY)
     assert B["x"].shape == (6, 21, 21)
     i = hold.release_row(np.arange(140) * 0.02, 1.5)
     g0 = f[f.group_id == "g0"]
@@ -95,7 +100,7 @@ def test_hold_bank_and_loso(synthetic_frames):
     tip0, tip1 = x0[0, -1, 6:9], x1[0, -1, 6:9]
     assert np.linalg.norm(tip1) == pytest.approx(np.linalg.norm(tip0), rel=1e-5)
     assert (BR.bearing_deg(tip1, B["n"]) - BR.bearing_deg(tip0, B["n"])) % 360 == pytest.approx(90, abs=1e-3)
-    r = hold.leave_one_session_out(B)
+    r = hold.leave_one_session_out(B, PROTO.rig.arm_length_m)
     assert r["n_holds"] == 6 and r["n_sessions"] == 3
 
 
@@ -108,23 +113,23 @@ def test_loso_known_answer():
     x[2:, :, 6] += 0.010
     x[2:, :, 9:12] = [1.0, 0.0, 0.0]
     B = dict(q=np.zeros((4, 4)), x=x, session=np.array(["a", "a", "b", "b"]), n=np.array([0.0, -1.0, 0.0]))
-    r = hold.leave_one_session_out(B)
+    r = hold.leave_one_session_out(B, PROTO.rig.arm_length_m)
     assert r["tip_mm_median"] == pytest.approx(10.0) and r["axis_deg_median"] == pytest.approx(90.0)
-    assert r["tip_pct_arm_median"] == pytest.approx(10.0 / 730.0 * 100)
+    assert r["tip_pct_arm_median"] == pytest.approx(10.0 / (PROTO.rig.arm_length_m * 1e3) * 100)
 
 
 def test_speed_travel_known_answer():
     tip = np.zeros((26, 3))
     tip[:, 0] = np.arange(26) * 0.01  # 1 cm per 20 ms step = 0.5 m/s
-    v, d = gate.speed_travel(tip)
+    v, d = gate.speed_travel(tip, DT)
     assert v == pytest.approx(0.5) and d == pytest.approx(0.25)
 
 
 def test_persistence_and_eligible(windows):
     tr, _ = windows
-    idx = evaluate.eligible(tr)
+    idx = evaluate.eligible(tr, evaluate.eval_horizon(DT))
     assert len(tr["anchors"]) == 4 * (140 - 48) and len(idx) == 4 * (140 - 58)
-    e = evaluate.persistence_tip_mm(tr, idx)
+    e = evaluate.persistence_tip_mm(tr, idx, evaluate.eval_horizon(DT))
     assert e.shape == (len(idx), 35)
     # persistence predicts x_t: its error at h is |tip(t+h) - tip(t)|, read here from the frames
     X = tr["X"]
@@ -146,9 +151,9 @@ def test_tiny_training_reduces_loss(windows, trained):
     W = T.prepare(va)
     idx = np.arange(128)
     T.seed_all(0)
-    prior = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]))  # zero residual = f_cv alone
-    l0, _ = T.evaluate_loss(prior, W, idx, T.step_weights())
-    l1, _ = T.evaluate_loss(model, W, idx, T.step_weights())
+    prior = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]), LOOKAHEAD)  # zero residual = f_cv alone
+    l0, _ = T.evaluate_loss(prior, W, idx, T.step_weights(HORIZON))
+    l1, _ = T.evaluate_loss(model, W, idx, T.step_weights(HORIZON))
     assert l1 < 0.5 * l0
     assert [r["epoch"] for r in curve] == [1, 2, 3, 4]
 
@@ -187,7 +192,7 @@ def test_ensemble_rollout_shapes(tmp_path, windows, trained):
     ens = Ensemble(paths, device="cpu")
     W = T.prepare(va)
     xs, us, _ = T.batch(W, W["anchors"][:6])
-    out = ens.rollout(xs.reshape(2, 3, 21, 21), us.reshape(2, 3, *us.shape[1:]))
+    out = ens.rollout(xs.reshape(2, 3, 21, 21), us.reshape(2, 3, *us.shape[1:]), HORIZON)
     assert out["tip"].shape == (3, 2, 3, 26, 3) and out["disagreement"].shape == (2, 3, 26)
     np.testing.assert_allclose(out["disagreement"], 0, atol=1e-6)  # identical members agree
 
@@ -196,12 +201,12 @@ def test_stacked_ensemble_equals_each_model(windows, trained):
     """The stacked, batched-over-seeds rollout of rollout.py is Dynamics.rollout(carry=True)."""
     tr, va = windows
     T.seed_all(1)
-    other = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]))
+    other = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]), LOOKAHEAD)
     torch.nn.init.normal_(other.head.weight, std=0.1)  # a second, different member
     ens = Ensemble(models=[trained[0], other], device="cpu")
     W = T.prepare(va)
     xs, us, _ = T.batch(W, W["anchors"][:32])
-    out = ens.rollout(xs, us)
+    out = ens.rollout(xs, us, HORIZON)
     with torch.inference_mode():
         for s, m in enumerate(ens.models):
             ref = m.rollout(xs, us, HORIZON)[..., M.TIP].numpy()

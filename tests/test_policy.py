@@ -7,7 +7,9 @@ import pytest
 
 from embodied_snap import bearing as BR
 from embodied_snap.policy import actions, geometry, networks, reward, search, targets
+from embodied_snap.primitive import release_goals
 from embodied_snap.twin import protocols as P
+from paper_protocol import PROTO
 
 RANGES = dict(rho1=[2400, 3700], dphi=[-25, 25], tau=[0.45, 0.675], rho2=[2100, 3300], rho3=[2200, 3600],
               s3=[0, 1800])
@@ -43,7 +45,7 @@ def test_action_map_eq7_and_clamps():
     assert a["rho1"].tolist() == [2400, 3700, 3050] and a["dphi"].tolist() == [-25, 25, 0]
     assert a["s3"].tolist() == [0, 1800, 450]  # quadratic: the middle of u is a quarter of the range
     ws = dict(bin_lo_deg=180.0, bin_width_deg=10.0, rho_max=[[3000, 3000, 3000], [3500, 3200, 3300]])
-    c = actions.workspace_clamp(a, np.array([185.0, 195.0, 250.0]), ws)
+    c = actions.workspace_clamp(a, np.array([185.0, 195.0, 250.0]), ws, 0.9)
     assert c["rho1"].tolist() == pytest.approx([2400, 0.9 * 3500, 3050])  # 250 deg: last bin, under it
     assert actions.project_timing(np.array([0.3, 0.5, 0.9]), (0.45, 0.675)).tolist() == [0.45, 0.5, 0.675]
 
@@ -51,12 +53,13 @@ def test_action_map_eq7_and_clamps():
 def test_release_goals_are_the_rigs_primitive():
     """The model's 50 Hz schedule equals the rig's command trace at the same instants."""
     prm = dict(rho1=3100.0, rho2=2750.0, rho3=2900.0, s3=30.0, dphi=5.0, tau=0.55)
-    bearing = P.PHI0_DEG + prm["dphi"]
-    goals, times = P.primitive(prm, bearing, 0.001)
+    bearing = PROTO.primitive.phi0_deg + prm["dphi"]
+    goals, times = P.primitive(prm, bearing, 0.001, PROTO)
     t = times["t_s2"] + np.arange(-40, 60) * 0.02
     idx = np.round(t / 0.001).astype(int)
-    g = P.release_goals(np.array([[prm["rho1"], prm["rho2"], prm["rho3"]]]), np.array([prm["s3"]]),
-                        np.array([bearing]), np.round(idx * 0.001 - times["t_s2"], 9), 0.0, np.array([prm["tau"]]))
+    g = release_goals(np.array([[prm["rho1"], prm["rho2"], prm["rho3"]]]), np.array([prm["s3"]]),
+                      np.array([bearing]), np.round(idx * 0.001 - times["t_s2"], 9), 0.0, np.array([prm["tau"]]),
+                      PROTO.primitive.s2_ramp_s)
     np.testing.assert_allclose(g[0], goals[idx], atol=1e-6)
 
 
@@ -87,11 +90,11 @@ def test_strike_closest_approach_after_release():
     tip = np.zeros((1, 11, 3))
     tip[0, :, 0] = 0.02 * k  # 1 m/s along x
     cup = tip + np.array([0.0, -0.1, 0.0])
-    s = reward.strike(cup, tip, np.array([[0.1, -0.1, 0.0]]), np.array([[-1.0, 0.0, 0.0]]), np.array([2]))
+    s = reward.strike(cup, tip, np.array([[0.1, -0.1, 0.0]]), np.array([[-1.0, 0.0, 0.0]]), np.array([2]), 0.02)
     assert s["miss_m"][0] == pytest.approx(0.0, abs=1e-12) and s["t_ca_s"][0] == pytest.approx(0.1)
     assert s["v_pk_mps"][0] == pytest.approx(1.0)
     # Closest approach is searched only after the S1 release.
-    s = reward.strike(cup, tip, np.array([[0.0, -0.1, 0.0]]), np.array([[-1.0, 0.0, 0.0]]), np.array([3]))
+    s = reward.strike(cup, tip, np.array([[0.0, -0.1, 0.0]]), np.array([[-1.0, 0.0, 0.0]]), np.array([3]), 0.02)
     assert s["t_ca_s"][0] == pytest.approx(0.06) and s["gap_m"][0] == pytest.approx(-0.06)
 
 

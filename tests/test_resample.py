@@ -32,7 +32,7 @@ def raw(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def frame(raw):
-    return resample_group(raw, "dyn_0001")
+    return resample_group(raw, "dyn_0001", 50.0, 0.1)
 
 
 def test_columns(frame):
@@ -72,7 +72,7 @@ def test_base_frame_geometry_static_arm(tmp_path):
     """A rotated and translated base: x holds the arm's base-frame geometry, nothing of the base pose."""
     raw = tmp_path / "raw"
     write_fake_group(raw, "g_static", duration_s=1.0, static=True, dropouts=())
-    f = resample_group(raw, "g_static")
+    f = resample_group(raw, "g_static", 50.0, 0.1)
     # The known geometry: cumulative bends 0.2, 0.45, 0.8 rad towards azimuth phi=0.7 rad.
     lengths, th, phi = (0.324, 0.230, 0.326), np.array([0.2, 0.45, 0.8]), 0.7
     d = np.stack([np.sin(th) * np.cos(phi), -np.cos(th), np.sin(th) * np.sin(phi)], axis=1)
@@ -85,7 +85,7 @@ def test_base_frame_geometry_static_arm(tmp_path):
     write_fake_group(
         raw2, "g_static", duration_s=1.0, static=True, dropouts=(), base_pos=(0, 0, 0), base_quat=(1, 0, 0, 0)
     )
-    np.testing.assert_allclose(resample_group(raw2, "g_static")[GEOM].to_numpy(np.float64), got, atol=2e-6)
+    np.testing.assert_allclose(resample_group(raw2, "g_static", 50.0, 0.1)[GEOM].to_numpy(np.float64), got, atol=2e-6)
 
 
 def test_moving_arm_matches_known_geometry_across_dropouts(frame):
@@ -106,7 +106,7 @@ def test_quaternion_sign_flips_do_not_matter(tmp_path, frame):
         q = [f"{b}_q{c}" for c in "wxyz"]
         m.loc[m.index[1::2], q] *= -1.0
     write_parquet(m, p)
-    np.testing.assert_allclose(resample_group(raw, "dyn_0001")[GEOM], frame[GEOM], atol=1e-6)
+    np.testing.assert_allclose(resample_group(raw, "dyn_0001", 50.0, 0.1)[GEOM], frame[GEOM], atol=1e-6)
 
 
 def test_quat_to_matrix_agrees_with_quaternion_product():
@@ -137,16 +137,16 @@ def test_target_dropout_is_not_part_of_state(raw):
     """fakerig loses the target for 0.25 s (> max_gap_s): the target is not in x_t, so no error."""
     m = pd.read_parquet(group_paths(raw, "dyn_0001")["mocap"])
     assert (~m.target_valid).sum() / 240 > 0.1
-    resample_group(raw, "dyn_0001", max_gap_s=0.1)
+    resample_group(raw, "dyn_0001", 50.0, max_gap_s=0.1)
 
 
 def test_short_dropouts_bridged_up_to_max_gap(raw):
     # tip loses 6 samples (gap 7/240 s = 0.029 s); s2 loses 12 (13/240 s = 0.054 s).
-    resample_group(raw, "dyn_0001", max_gap_s=0.055)
+    resample_group(raw, "dyn_0001", 50.0, max_gap_s=0.055)
     from embodied_snap.validate import RecordingError
 
     with pytest.raises(RecordingError, match=r"group dyn_0001: s2 not tracked for 0\.054 s"):
-        resample_group(raw, "dyn_0001", max_gap_s=0.05)
+        resample_group(raw, "dyn_0001", 50.0, max_gap_s=0.05)
 
 
 def test_shard_concatenates_groups_each_on_its_own_grid(raw, frame):
@@ -160,4 +160,4 @@ def test_shard_concatenates_groups_each_on_its_own_grid(raw, frame):
 
 
 def test_deterministic(raw, frame):
-    pd.testing.assert_frame_equal(resample_group(raw, "dyn_0001"), frame)
+    pd.testing.assert_frame_equal(resample_group(raw, "dyn_0001", 50.0, 0.1), frame)

@@ -6,8 +6,10 @@ import torch
 from embodied_snap.dynamics.model import TIP, Dynamics, norm_stats
 from embodied_snap.dynamics.rollout import Ensemble
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
+from paper_protocol import PROTO
 
 torch.set_num_threads(1)
+LOOKAHEAD = PROTO.windows.lookahead
 
 
 def members(synthetic_frames, n=3):
@@ -17,7 +19,7 @@ def members(synthetic_frames, n=3):
     ms = []
     for s in range(n):
         torch.manual_seed(s)
-        m = Dynamics(stats)
+        m = Dynamics(stats, LOOKAHEAD)
         torch.nn.init.normal_(m.head.weight, std=0.02)  # a nonzero residual that stays physical
         ms.append(m.eval())
     return ms, X, U
@@ -47,7 +49,7 @@ def test_mean_and_disagreement(synthetic_frames):
     ms, X, U = members(synthetic_frames)
     a = 40 + np.arange(5)
     xs, us = X[a[:, None] + np.arange(-20, 1)], U[a[:, None] + np.arange(-19, 25 + 5)]
-    out = Ensemble(models=ms, device="cpu").rollout(xs, us)
+    out = Ensemble(models=ms, device="cpu").rollout(xs, us, 25)
     tip = out["tip"]
     np.testing.assert_allclose(out["mean"], tip.mean(0), atol=1e-6)
     dis = np.linalg.norm(tip - tip.mean(0), axis=-1).mean(0)

@@ -15,6 +15,9 @@ from embodied_snap.twin import sim
 from embodied_snap.twin import truth as TR
 from embodied_snap.twin.acquire import acquire_groups
 from embodied_snap.twin.phenomena import phenomena
+from paper_protocol import PROTO
+
+DT = 0.001  # config twin.dt
 
 SEED = 20261123
 GROUPS = pd.DataFrame(
@@ -36,7 +39,7 @@ GROUPS = pd.DataFrame(
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):
     d = tmp_path_factory.mktemp("raw")
-    rows = acquire_groups(GROUPS, d, seed=SEED, progress=False)
+    rows = acquire_groups(GROUPS, d, seed=SEED, proto=PROTO, dt=DT, progress=False)
     return d, rows
 
 
@@ -124,14 +127,14 @@ def test_same_seed_same_bytes_and_group_independence(raw, tmp_path):
     d, _ = raw
     pick = GROUPS[GROUPS.group_id.isin(["dly_0004", "rel_0037"])]
     # alone, in another order and another directory: identical files
-    acquire_groups(pick.iloc[::-1], tmp_path, seed=SEED, progress=False)
+    acquire_groups(pick.iloc[::-1], tmp_path, seed=SEED, proto=PROTO, dt=DT, progress=False)
     for gid in pick.group_id:
         for name in RF.GROUP_FILES:
             a = (RF.group_dir(d, gid) / name).read_bytes()
             b = (RF.group_dir(tmp_path, gid) / name).read_bytes()
             assert a == b, (gid, name)
     other = tmp_path / "other"
-    acquire_groups(pick.iloc[:1], other, seed=SEED + 1, progress=False)
+    acquire_groups(pick.iloc[:1], other, seed=SEED + 1, proto=PROTO, dt=DT, progress=False)
     gid = pick.group_id.iloc[0]
     assert (RF.group_dir(d, gid) / "mocap.parquet").read_bytes() != (RF.group_dir(other, gid) / "mocap.parquet").read_bytes()
 
@@ -165,7 +168,7 @@ def test_cables_only_pull():
     """A probe through preload and release: cable tension never negative, and a cable
     commanded slack carries nothing (it does not push the arm back)."""
     dt = 0.001
-    goals, times = P.primitive(dict(P.OPERATING, tau=0.5), P.PHI0_DEG, dt)
+    goals, times = P.primitive(dict(P.OPERATING, tau=0.5), PROTO.primitive.phi0_deg, dt, PROTO)
     goals = goals[: int((times["t_s1"] + 0.4) / dt)]
     pres = SV.present_from_goal(goals, dt, np.full(9, 3000.0), np.full(9, 0.03))
     tr = sim.run(dict(M.NOMINAL), pres, dt, TR.LATCH)
@@ -190,7 +193,7 @@ def test_truth_is_per_session():
 
 def test_phenomena_keys(raw):
     d, _ = raw
-    ph = phenomena(d, GROUPS)
+    ph = phenomena(d, GROUPS, PROTO)
     for k in (
         "direct_release_tip_speed_mps",
         "snap_tip_speed_mps",

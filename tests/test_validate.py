@@ -327,7 +327,7 @@ def test_broken_recording_is_rejected(raw, kind):
     breaks, where, rule = CORPUS[kind]
     breaks(raw)
     with pytest.raises(RecordingError) as exc:
-        resample_group(raw, G) if kind == "long mocap dropout" else validate_all(raw)
+        resample_group(raw, G, 50.0, 0.1) if kind == "long mocap dropout" else validate_all(raw)
     msg = str(exc.value)
     path, gid = _expected(raw, where)
     assert "\n" not in msg
@@ -345,4 +345,4 @@ def test_long_dropout_message_names_body_and_span(raw):
     with pytest.raises(
         RecordingError, match=r"tip not tracked for 0\.30\d s from t=13\.49\d to t=13\.80\d s"
     ):
-        resample_group(raw, G)
+        resample_group(raw, G, 50.0, 0.1)

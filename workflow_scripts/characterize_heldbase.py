@@ -11,7 +11,8 @@ sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     p = snakemake.params
     servo_fit = json.load(open(snakemake.input.servo))
-    tr = [dict(group_id=g, **heldbase.trial(*load.group(p.raw, g), servo_fit, p.thresholds)) for g in p.groups]
-    out = heldbase.summarize(tr, p.window_s)
+    d = p.detectors  # config characterize.heldbase: thresholds and window_s
+    tr = [dict(group_id=g, **heldbase.trial(*load.group(p.raw, g), servo_fit, d)) for g in p.groups]
+    out = heldbase.summarize(tr, d["window_s"])
     print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
     write_json(out, snakemake.output[0])

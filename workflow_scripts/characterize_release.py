@@ -6,11 +6,13 @@ import sys
 
 from embodied_snap.characterize import release, trials
 from embodied_snap.lineage.records import tracked
+from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     rows = trials.table(snakemake.params.raw, snakemake.params.groups)
-    out = release.summarize(rows, json.load(open(snakemake.input.servo))["ceiling_rad_s"])
+    v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
+    out = release.summarize(rows, json.load(open(snakemake.input.servo))["ceiling_rad_s"], v)
     print({k: v for k, v in out.items() if k != "speeds"}, file=sys.stderr)
     write_json(out, snakemake.output[0])

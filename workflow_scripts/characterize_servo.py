@@ -8,8 +8,8 @@ import numpy as np
 from embodied_snap.characterize import load
 from embodied_snap.characterize import servo as S
 from embodied_snap.lineage.records import tracked
+from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import servo_id, write_json
-from embodied_snap.reference import paper_values
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -22,8 +22,9 @@ with tracked(snakemake):
                            present=sv[[f"present_{i}" for i in ids]].to_numpy(float),
                            t_changes=(meta["labels"]["t_up"], meta["labels"]["t_down"])))
     fit = S.fit(bursts)
-    # The rated no-load speed is a datasheet value: Eq. 2 uses it as the conservative ceiling.
-    rated = float(paper_values()["characterize"]["rated_rate_tick_s"]["paper"])
+    # The rated no-load speed is a datasheet value (config rig.rated_speed_tick_s): Eq. 2 uses it
+    # as the conservative ceiling.
+    rated = from_params(snakemake.params.protocol).rig.rated_speed_tick_s
     lever = json.load(open(snakemake.input.kinematics))["lever_ticks_per_rad"]
     peaks = S.peak_rates(bursts)
     fit.update(n_bursts=len(bursts), rated_tick_s=rated, ceiling_rad_s=S.ceilings(rated, lever),

@@ -8,13 +8,15 @@ import pandas as pd
 from embodied_snap.io import read_parquet
 from embodied_snap.policy.analysis import summarize
 from embodied_snap.lineage.records import tracked
+from embodied_snap.protocol import from_params
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     i, p = snakemake.input, snakemake.params
     runs = [json.load(open(f)) for f in i.runs]
     evals = pd.concat([read_parquet(f) for f in i.evals if f != i.fixed], ignore_index=True)
-    s = summarize(runs, evals, read_parquet(i.fixed), p.tolerances, p.d_f, p.v_min, p.budget_evaluations)
+    s = summarize(runs, evals, read_parquet(i.fixed), p.tolerances, p.d_f, p.v_min, p.budget_evaluations,
+                  from_params(p.protocol).primitive.timing_s)
     print(json.dumps({k: s[k] for k in ("archs", "seeds", "reward", "reach")}, indent=1), file=sys.stderr)
     with open(snakemake.output[0], "w") as f:
         json.dump(s, f, indent=1)

@@ -6,21 +6,13 @@ import pandas as pd
 
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
+from embodied_snap.protocol import from_params
 from embodied_snap.windows import make_windows, save_windows
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     frames = pd.concat([read_parquet(f) for f in snakemake.input.shards], ignore_index=True)
-    w = snakemake.params.w
-    arrays = make_windows(
-        frames,
-        history=w["history"],
-        lookahead=w["lookahead"],
-        horizon=w["horizon"],
-        stride=w["stride"],
-        snap_speed_mps=w["snap_speed_mps"],
-        fast_speed_mps=w["fast_speed_mps"],
-    )
+    arrays = make_windows(frames, from_params(snakemake.params.protocol).windows)
     save_windows(snakemake.output[0], arrays)
     n = len(arrays["anchors"])
     print(f"{snakemake.wildcards.role}: {len(arrays['group_ids'])} groups, {n} windows, "

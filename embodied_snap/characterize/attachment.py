@@ -1,6 +1,6 @@
 """Attachment (paper III-B, Fig. 2c): a descriptive speed/cup-tilt logistic model with
 session-grouped cross-validated AUC; attachments below 1 m/s; the attach fraction among trials
-arriving within 150 mm laterally and above 1 m/s."""
+arriving within 150 mm laterally and above 1 m/s (the protocol's attachment threshold, passed in)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,6 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from statsmodels.stats.proportion import proportion_confint
 
-SNAP_MPS = 1.0
 LATERAL_M = 0.150
 
 
@@ -35,7 +34,7 @@ def grouped_auc(X, y, groups, make=model, n_splits=5) -> float:
     return float(roc_auc_score(y, p))
 
 
-def fit(rows) -> dict:
+def fit(rows, attach_speed_mps: float) -> dict:
     r = [x for x in rows if np.isfinite(x["v_peak"]) and np.isfinite(x["tilt_deg"])]
     X = np.array([[x["v_peak"], x["tilt_deg"]] for x in r])
     y = np.array([bool(x["attached"]) for x in r], int)
@@ -48,9 +47,9 @@ def fit(rows) -> dict:
         # The full-data fit, in raw units, for the figure's contours: logit = b0 + b . x
         out["coef"] = [float(c) for c in lr.coef_[0] / sc.scale_]
         out["intercept"] = float(lr.intercept_[0] - (lr.coef_[0] * sc.mean_ / sc.scale_).sum())
-    out["attached_below_1mps"] = int(((X[:, 0] < SNAP_MPS) & (y == 1)).sum()) if len(r) else 0
+    out["attached_below_1mps"] = int(((X[:, 0] < attach_speed_mps) & (y == 1)).sum()) if len(r) else 0
     lat = np.array([x["lateral_m"] for x in r])
-    near = (lat <= LATERAL_M) & (X[:, 0] > SNAP_MPS) if len(r) else np.zeros(0, bool)
+    near = (lat <= LATERAL_M) & (X[:, 0] > attach_speed_mps) if len(r) else np.zeros(0, bool)
     k, n = int(y[near].sum()), int(near.sum())
     out.update(near_fast_n=n, near_fast_attached=k, near_fast_fraction=k / n if n else float("nan"),
                near_fast_ci95=[float(x) for x in proportion_confint(k, n, method="wilson")] if n else [np.nan] * 2)

@@ -16,7 +16,6 @@ OURS = {
     "servo_max_rate_tick_s": ("servo", lambda r: r["rate_tick_s"]),
     "servo_time_constant_s": ("servo", lambda r: r["tau_s"]),
     "servo_n_bursts": ("servo", lambda r: r["n_bursts"]),
-    "rated_rate_tick_s": ("servo", lambda r: r["rated_tick_s"]),
     "rate_ceiling_s1": ("servo", lambda r: r["ceiling_rad_s"][0]),
     "rate_ceiling_s2": ("servo", lambda r: r["ceiling_rad_s"][1]),
     "rate_ceiling_s3": ("servo", lambda r: r["ceiling_rad_s"][2]),

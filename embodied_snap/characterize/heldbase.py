@@ -1,9 +1,10 @@
 """Held-base trials (paper V-C): which causal signal detects the operator's base deformation.
 
 Each detector sees only the past: it fires at the first sample where its signal leaves a
-lagged reference by more than its threshold; a detection counts if it fires within 100 ms of the
-labelled event. Detectors are not armed by the command program, so one whose signal also moves
-with the commanded motion fires on that. Detectors:
+lagged reference by more than its threshold; a detection counts if it fires within window_s of the
+labelled event (100 ms; config characterize.heldbase holds it and the thresholds). Detectors are
+not armed by the command program, so one whose signal also moves with the commanded motion fires
+on that. Detectors:
 - base: the tracked mount's displacement (mm);
 - neighbour: the displacement of the next tracked body down the arm (distal end of S1, mm);
 - servo residual: S1 servo present position minus the fitted first-order servo model (ticks);
@@ -64,7 +65,7 @@ def trial(mc, sv, meta, servo_fit, thr) -> dict:
                 residual_quiet_median=float(np.median(res[~near])))
 
 
-def summarize(trials, window_s: float = 0.1) -> dict:
+def summarize(trials, window_s: float) -> dict:
     ev = np.array([x["event"] for x in trials])
 
     def frac(tf):

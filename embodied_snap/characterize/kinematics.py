@@ -20,6 +20,7 @@ from .. import rawformat as RF
 from . import mocap as M
 
 SETTLE_S = 0.5  # s after the step before the plateau counts as quasi-static
+EDGE_S = 0.02  # s kept clear of each command step (log timing jitter): a fit margin, not a protocol value
 
 
 def burst_rows(mc, sv, meta) -> list[dict]:
@@ -28,8 +29,8 @@ def burst_rows(mc, sv, meta) -> list[dict]:
     t, ts = mc.t.to_numpy(), sv.t.to_numpy()
     lab = meta["labels"]
     rows = []
-    for window, (lo, hi) in (("rest", (0.05, lab["t_up"] - 0.02)),
-                             ("hold", (lab["t_up"] + SETTLE_S, lab["t_down"] - 0.02))):
+    for window, (lo, hi) in (("rest", (0.05, lab["t_up"] - EDGE_S)),
+                             ("hold", (lab["t_up"] + SETTLE_S, lab["t_down"] - EDGE_S))):
         m, ms = (t > lo) & (t < hi), (ts > lo) & (ts < hi)
         if m.sum() < 3 or ms.sum() < 2:
             continue
@@ -45,7 +46,7 @@ def burst_rows(mc, sv, meta) -> list[dict]:
     return rows
 
 
-def fit_levers(rows, quantile: float = 0.9) -> dict:
+def fit_levers(rows, quantile: float) -> dict:
     """d_p/k (ticks/rad) for S1..S3 by quantile regression of w on Eq. 1's features and the load."""
     # Current of an unloaded servo: the median over the rests before the bursts.
     rest = [r["current"] for r in rows if r.get("window") == "rest"]

@@ -1,21 +1,18 @@
 """Release modes (paper III-A/B, Fig. 2b): peak tip speed of direct, ramped and instantaneous
 releases; the direct-release range; the fraction of instantaneous releases above 1 m/s; section
 bend rates at the operating point (the instantaneous releases are primitives around it) and their
-ratio to the Eq. 2 ceilings."""
+ratio to the Eq. 2 ceilings. The 1 m/s is the protocol's attachment threshold, passed in."""
 
 from __future__ import annotations
 
 import numpy as np
 from statsmodels.stats.proportion import proportion_confint
 
-SNAP_MPS = 1.0  # the empirical attachment threshold (paper III-A)
-
-
-def summarize(rows, ceilings_rad_s) -> dict:
+def summarize(rows, ceilings_rad_s, attach_speed_mps: float) -> dict:
     by = {c: np.array([r["v_peak"] for r in rows if r["category"] == c and np.isfinite(r["v_peak"])])
           for c in ("direct", "ramped", "instantaneous")}
     inst = by["instantaneous"]
-    n_fast = int((inst > SNAP_MPS).sum())
+    n_fast = int((inst > attach_speed_mps).sum())
     rates = np.array([r["rate_peak"] for r in rows if r["category"] == "instantaneous"], float)
     med_rates = np.nanmedian(rates, axis=0) if len(rates) else np.full(3, np.nan)
     q = lambda x, p: [float(v) for v in np.percentile(x, p)] if len(x) else [float("nan")] * len(p)  # noqa: E731

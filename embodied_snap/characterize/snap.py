@@ -1,5 +1,6 @@
 """Snap classifier (paper III-B, Fig. 3a): P_snap(rho1, rho2), the probability that a release
-from proximal preloads (rho1, rho2) exceeds 1 m/s, fitted on the training-split
+from proximal preloads (rho1, rho2) exceeds 1 m/s (the protocol's attachment threshold, passed
+in), fitted on the training-split
 characterisation groups only. A logistic model on quadratic features of the standardised
 preloads; session-grouped cross-validated AUC; the fraction of the explored box with P > 0.8;
 the operating point. Saved as JSON; `load` gives the object the policy reward calls.
@@ -14,7 +15,6 @@ from sklearn.linear_model import LogisticRegression
 
 from .attachment import grouped_auc
 
-SNAP_MPS = 1.0
 P_HIGH = 0.8
 
 
@@ -56,10 +56,10 @@ class _Quad:
         return self.lr.predict_proba(quad(Z[:, 0], Z[:, 1]))
 
 
-def fit(rows, grid_n: int = 101) -> dict:
+def fit(rows, attach_speed_mps: float, grid_n: int = 101) -> dict:
     r = [x for x in rows if np.isfinite(x["v_peak"])]
     X = np.array([[x["rho1"], x["rho2"]] for x in r], float)
-    y = np.array([x["v_peak"] > SNAP_MPS for x in r], int)
+    y = np.array([x["v_peak"] > attach_speed_mps for x in r], int)
     sess = np.array([x["session"] for x in r])
     out = dict(n=len(r), n_event=int(y.sum()), auc_grouped_cv=grouped_auc(X, y, sess, make=_Quad),
                trials=[dict(rho1=float(a), rho2=float(b), event=int(c)) for (a, b), c in zip(X, y)],

@@ -1,14 +1,14 @@
 """Quasi-static hold model (paper IV-A): the pre-release configuration that starts a rollout.
 
-A recorded hold is the 50 Hz state history x_{t-20..t} up to the last frame before the S2 release
+A recorded hold is the state history x_{t-20..t} (the protocol's window history) up to the last frame before the S2 release
 (meta label t_s2) of a training-split dynamics group: the preload is set, S3 has been slackened and
 the curled tip has settled, and nothing fast has happened yet. The rollout from there covers the S2
 release, the delay tau and the S1 snap, so tau acts through the commands, as on the rig.
 
-Each hold is keyed by its program (rho1, rho2, rho3, s3) and stored in the canonical bearing PHI0:
-positions and the tip axis are rotated about the measured free-hanging axis n by PHI0 - bearing,
-and servo positions are kept as their offsets from the goals. A new command (rho, s3) aimed at
-PHI0 + dphi gets the inverse-distance average of the 12 nearest holds in (rho1, rho2, rho3, s3),
+Each hold is keyed by its program (rho1, rho2, rho3, s3) and stored in the canonical bearing phi0
+(the protocol's, config primitive.phi0_deg): positions and the tip axis are rotated about the
+measured free-hanging axis n by phi0 - bearing, and servo positions are kept as their offsets from
+the goals. A new command (rho, s3) aimed at phi0 + dphi gets the inverse-distance average of the 12 nearest holds in (rho1, rho2, rho3, s3),
 scaled by (1500, 1500, 1500, 1000) ticks with distances floored at 0.01, rotated by dphi, with the
 servo positions put back on its own goals. Support confidence C_h = 0.5 + 0.5 exp(-(d_mean/0.3)^2).
 """
@@ -20,8 +20,7 @@ import pandas as pd
 
 from .. import bearing as BR
 from ..resample import COMMAND_COLUMNS, STATE_COLUMNS
-from ..twin.protocols import PHI0_DEG
-from .model import AXIS, HISTORY, TIP
+from .model import AXIS, TIP
 
 KEYS = ("rho1", "rho2", "rho3", "s3")
 SCALE = np.array([1500.0, 1500.0, 1500.0, 1000.0])
@@ -55,9 +54,10 @@ def rotate_states(x: np.ndarray, deg, n: np.ndarray) -> np.ndarray:
     return x
 
 
-def bank(frames: pd.DataFrame, metas: dict[str, dict]) -> dict[str, np.ndarray]:
-    """Holds of the given groups, canonical: q (n, 4) scaled keys, x (n, 21, 21) x_{t-20..t} before
-    the S2 release (servo part: position - goal), n (3,) the hanging axis, session, group_ids."""
+def bank(frames: pd.DataFrame, metas: dict[str, dict], phi0_deg: float, history: int) -> dict[str, np.ndarray]:
+    """Holds of the given groups in the canonical bearing phi0_deg: q (n, 4) scaled keys, x (n,
+    history+1, 21) x_{t-20..t} before the S2 release (servo part: position - goal), n (3,) the
+    hanging axis, session, group_ids."""
     n = hanging_axis(frames)
     q, xs, sess, gids = [], [], [], []
     for gid, f in frames.groupby("group_id", sort=True):
@@ -66,11 +66,11 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict]) -> dict[str, np.ndarray]:
             continue
         t = f["t"].to_numpy()
         i = release_row(t, m["labels"]["t_s2"])
-        if i < HISTORY:
+        if i < history:
             continue
-        X = f[STATE_COLUMNS].to_numpy(np.float64)[i - HISTORY:i + 1]
-        U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - HISTORY:i + 1]
-        X = rotate_states(X, PHI0_DEG - float(m["program"]["bearing"]), n)
+        X = f[STATE_COLUMNS].to_numpy(np.float64)[i - history:i + 1]
+        U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - history:i + 1]
+        X = rotate_states(X, phi0_deg - float(m["program"]["bearing"]), n)
         X[:, SERVO] -= U
         q.append([m["program"][k] for k in KEYS])
         xs.append(X)
@@ -78,7 +78,7 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict]) -> dict[str, np.ndarray]:
         gids.append(gid)
     return {
         "q": np.asarray(q, np.float64).reshape(-1, 4) / SCALE,
-        "x": np.asarray(xs, np.float32).reshape(-1, HISTORY + 1, len(STATE_COLUMNS)),
+        "x": np.asarray(xs, np.float32).reshape(-1, history + 1, len(STATE_COLUMNS)),
         "n": n,
         "session": np.asarray(sess, dtype=str),
         "group_ids": np.asarray(gids, dtype=str),
@@ -115,9 +115,10 @@ def axis_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
 
 
-def leave_one_session_out(B: dict) -> dict:
+def leave_one_session_out(B: dict, arm_length_m: float) -> dict:
     """Each hold predicted from the holds of the other sessions (both canonical, i.e. compared at
-    the hold's own bearing): tip (mm) and axis (deg) errors of the terminal frame."""
+    the hold's own bearing): tip (mm, and % of the arm's length) and axis (deg) errors of the
+    terminal frame."""
     nh = len(B["q"])
     tip, ax, ch = np.full(nh, np.nan), np.full(nh, np.nan), np.full(nh, np.nan)
     for s in np.unique(B["session"]):
@@ -137,6 +138,6 @@ def leave_one_session_out(B: dict) -> dict:
         "tip_mm_mean": float(np.mean(tip[ok])),
         "axis_deg_median": float(np.median(ax[ok])),
         "axis_deg_mean": float(np.mean(ax[ok])),
-        "tip_pct_arm_median": float(np.median(tip[ok]) / 730.0 * 100),
+        "tip_pct_arm_median": float(np.median(tip[ok]) / (arm_length_m * 1e3) * 100),
         "c_h_median": float(np.median(ch[ok])),
     }

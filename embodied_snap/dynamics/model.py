@@ -12,6 +12,10 @@ per step and keeps its hidden state (45 GRU steps per 25-step rollout); `carry=F
 the last 20 frames from a zero state at every step, literally F_psi(H_{t+h}, U_{t+h}) (500 GRU
 steps). They differ only in what the carried state remembers from before t+h-19; training uses
 the carried form and tests/test_dynamics.py measures the gap.
+
+The window lengths are the protocol's (config `windows`), not this module's: the look-ahead is
+fixed by the GRU's input width (so a saved model knows its own), the history is however many
+frames a rollout is given.
 """
 
 from __future__ import annotations
@@ -20,7 +24,6 @@ import numpy as np
 import torch
 from torch import nn
 
-HISTORY, LOOKAHEAD, HORIZON = 20, 5, 25
 N_X, N_U = 21, 9
 TIP = slice(6, 9)  # tip_x, tip_y, tip_z in STATE_COLUMNS (m, base frame)
 AXIS = slice(9, 12)
@@ -49,12 +52,18 @@ def norm_stats(X: np.ndarray, U: np.ndarray, group: np.ndarray) -> dict[str, np.
     }
 
 
+def lookahead_of(n_in: int) -> int:
+    """The command look-ahead a GRU input width holds: frame = x, velocity, u_{k..k+lookahead}."""
+    return (n_in - 2 * N_X) // N_U - 1
+
+
 class Dynamics(nn.Module):
-    def __init__(self, stats: dict, width: int = 96, layers: int = 2):
+    def __init__(self, stats: dict, lookahead: int, width: int = 96, layers: int = 2):
         super().__init__()
         for k, v in stats.items():
             self.register_buffer(k, torch.as_tensor(np.asarray(v), dtype=torch.float32))
-        self.n_in = 2 * N_X + (LOOKAHEAD + 1) * N_U
+        self.lookahead = lookahead
+        self.n_in = 2 * N_X + (lookahead + 1) * N_U
         self.gru = nn.GRU(self.n_in, width, layers, batch_first=True)
         self.head = nn.Linear(width, N_X)
         # Start at the prior: a zero residual is f_cv itself.
@@ -62,7 +71,7 @@ class Dynamics(nn.Module):
         nn.init.zeros_(self.head.bias)
 
     def frame(self, x: torch.Tensor, x_prev: torch.Tensor, u_ahead: torch.Tensor) -> torch.Tensor:
-        """GRU input for frames (..., 21), (..., 21), (..., 6, 9) -> (..., n_in)."""
+        """GRU input for frames (..., 21), (..., 21), (..., lookahead+1, 9) -> (..., n_in)."""
         u = ((u_ahead - self.u_mu) / self.u_sd).flatten(-2)
         return torch.cat([(x - self.x_mu) / self.x_sd, (x - x_prev) / self.v_sd, u], -1)
 
@@ -72,26 +81,28 @@ class Dynamics(nn.Module):
         return f_cv(x, x_prev) + self.head(y[:, 0]) * self.r_sd, h
 
     def encode(self, xs: torch.Tensor, us: torch.Tensor, h=None):
-        """Run the GRU over a history: xs (B, T+1, 21) with one frame before the first, us (B, T+5, 9).
-        Returns the prediction of the frame after xs[:, -1] and the hidden state."""
+        """Run the GRU over a history: xs (B, T+1, 21) with one frame before the first, us
+        (B, T+lookahead, 9). Returns the prediction of the frame after xs[:, -1] and the hidden state."""
         T = xs.shape[1] - 1
-        ua = us.unfold(1, LOOKAHEAD + 1, 1)[:, :T].transpose(-1, -2)  # (B, T, 6, 9): u_{k..k+5}
+        ua = us.unfold(1, self.lookahead + 1, 1)[:, :T].transpose(-1, -2)  # (B, T, 6, 9): u_{k..k+5}
         y, h = self.gru(self.frame(xs[:, 1:], xs[:, :-1], ua), h)
         return f_cv(xs[:, -1], xs[:, -2]) + self.head(y[:, -1]) * self.r_sd, h
 
     def rollout(self, xs: torch.Tensor, us: torch.Tensor, horizon: int, carry: bool = True):
-        """Eq. 4 open loop. xs (B, 21, 21): x_{t-20..t} (one frame before the history for its velocity);
-        us (B, 20+horizon+4, 9): u_{t-19..t+horizon+4}. Returns x_hat_{t+1..t+horizon} (B, horizon, 21)."""
-        x_next, h = self.encode(xs, us[:, :HISTORY + LOOKAHEAD])
+        """Eq. 4 open loop. xs (B, history+1, 21): x_{t-20..t} (one frame before the history for its
+        velocity); us (B, history+horizon+lookahead-1, 9): u_{t-19..t+horizon+4}. Returns
+        x_hat_{t+1..t+horizon} (B, horizon, 21)."""
+        history, lookahead = xs.shape[1] - 1, self.lookahead
+        x_next, h = self.encode(xs, us[:, :history + lookahead])
         out = [x_next]
         hist = list(xs.unbind(1))
         for k in range(1, horizon):
             hist.append(x_next)
             if carry:
-                x_next, h = self.step(hist[-1], hist[-2], us[:, HISTORY + k - 1:HISTORY + k + LOOKAHEAD], h)
+                x_next, h = self.step(hist[-1], hist[-2], us[:, history + k - 1:history + k + lookahead], h)
             else:
-                win = torch.stack(hist[-HISTORY - 1:], 1)
-                x_next, _ = self.encode(win, us[:, k:k + HISTORY + LOOKAHEAD])
+                win = torch.stack(hist[-history - 1:], 1)
+                x_next, _ = self.encode(win, us[:, k:k + history + lookahead])
             out.append(x_next)
         return torch.stack(out, 1)
 
@@ -107,6 +118,6 @@ def save(model: Dynamics, path, **extra) -> None:
 def load(path, device="cpu") -> Dynamics:
     ck = torch.load(path, map_location=device, weights_only=False)
     stats = {k: ck["state"][k].cpu().numpy() for k in ("x_mu", "x_sd", "v_sd", "u_mu", "u_sd", "r_sd")}
-    m = Dynamics(stats).to(device)
+    m = Dynamics(stats, lookahead_of(ck["state"]["gru.weight_ih_l0"].shape[1])).to(device)
     m.load_state_dict(ck["state"])
     return m.eval()

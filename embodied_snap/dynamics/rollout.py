@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from .model import HISTORY, LOOKAHEAD, TIP, load
+from .model import TIP, load
 
 
 def default_device() -> str:
@@ -45,6 +45,7 @@ class Ensemble:
         self.models = list(models) if models is not None else [load(p, self.device) for p in paths]
         g = self.models[0].gru
         self.H, self.layers, self.n_in = g.hidden_size, g.num_layers, g.input_size
+        self.lookahead = self.models[0].lookahead
         H = self.H
         # Z columns: h_k starts at off[k], with a ones column just before it.
         self.off = [self.n_in + 1 + k * (H + 1) for k in range(self.layers)]
@@ -64,13 +65,14 @@ class Ensemble:
             n_h = 2 * torch.cat([one(bh[2 * H:]), wh[:, 2 * H:]])
             p["gates"].append([w.contiguous().to(self.device) for w in (rz, n_i, n_h)])
         p["head"] = (torch.cat([one(m.head.bias), m.head.weight.T]) * m.r_sd).contiguous().to(self.device)
-        rep = LOOKAHEAD + 1  # the frame holds u_{k..k+5}
+        rep = self.lookahead + 1  # the frame holds u_{k..k+5}
         p.update(x_mu=m.x_mu, x_sd=m.x_sd, v_sd=m.v_sd, u_mu=m.u_mu.repeat(rep), u_sd=m.u_sd.repeat(rep))
         return {k: v.to(self.device) if torch.is_tensor(v) else v for k, v in p.items()}
 
     @torch.inference_mode()
-    def rollout(self, xs, us, horizon: int = 25, states: bool = False, parts=()) -> dict:
-        """xs (..., 21, 21): x_{t-20..t}; us (..., 20+horizon+4, 9): u_{t-19..t+horizon+4}; any
+    def rollout(self, xs, us, horizon: int, states: bool = False, parts=()) -> dict:
+        """xs (..., history+1, 21): x_{t-20..t}; us (..., history+horizon+lookahead-1, 9):
+        u_{t-19..t+horizon+4}; any
         leading batch shape, e.g. (candidates, targets). Returns tip (seeds, ..., horizon+1, 3)
         from x_t on, their mean, and disagreement = the per-step mean distance of the seeds' tips
         to the ensemble mean (m). Optional: states=True adds the full states (seeds, ...,
@@ -102,6 +104,7 @@ class Ensemble:
     def _seed(self, p: dict, xs, us, out) -> None:
         """One seed's rollout of the whole batch into out (horizon+1, B, 21)."""
         B, nx, H, off = xs.shape[0], xs.shape[-1], self.H, self.off
+        history, lookahead = xs.shape[1] - 1, self.lookahead  # the history is what the caller gives
         Z = xs.new_zeros(B, self.width)
         Z[:, [o - 1 for o in off]] = 1
         rz, n_i, n_h = xs.new_empty(B, 2 * H), xs.new_empty(B, H), xs.new_empty(B, H)
@@ -112,12 +115,12 @@ class Ensemble:
         res = xs.new_empty(B, nx)
         out[0] = xs[:, -1]
         x, xp = out[0], xs[:, -2]
-        for j in range(HISTORY + len(out) - 2):
+        for j in range(history + len(out) - 2):
             # The frame of step j: the history's own frames first, then the fed-back predictions.
-            a, b = (xs[:, j + 1], xs[:, j]) if j < HISTORY else (x, xp)
+            a, b = (xs[:, j + 1], xs[:, j]) if j < history else (x, xp)
             torch.sub(a, p["x_mu"], out=fx).div_(p["x_sd"])
             torch.sub(a, b, out=fv).div_(p["v_sd"])
-            torch.sub(us[:, j:j + LOOKAHEAD + 1].reshape(B, -1), p["u_mu"], out=fu).div_(p["u_sd"])  # u_{j..j+5}
+            torch.sub(us[:, j:j + lookahead + 1].reshape(B, -1), p["u_mu"], out=fu).div_(p["u_sd"])  # u_{j..j+5}
             for (zrz, zi, zh, h), (w_rz, w_ni, w_nh) in zip(views, p["gates"]):
                 torch.mm(zrz, w_rz, out=rz)
                 torch.mm(zi, w_ni, out=n_i)
@@ -125,8 +128,8 @@ class Ensemble:
                 rz.sigmoid_()
                 n = n_i.addcmul_(rz[:, :H], n_h).sigmoid_().mul_(2).sub_(1)
                 torch.lerp(n, h, rz[:, H:], out=h)  # (1 - z) n + z h, in place in Z
-            if j >= HISTORY - 1:
-                k = j - HISTORY + 2
+            if j >= history - 1:
+                k = j - history + 2
                 torch.mm(last, p["head"], out=res)
                 torch.mul(x, 2, out=out[k]).sub_(xp).add_(res)  # Eq. 3-4: f_cv + residual
                 xp, x = x, out[k]

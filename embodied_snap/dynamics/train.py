@@ -1,8 +1,9 @@
-"""Training of Eq. 3 on 25-step open-loop rollouts (Eq. 4), paper IV-A.
+"""Training of Eq. 3 on H-step open-loop rollouts (Eq. 4; H = 25 in the paper), paper IV-A.
 
-Loss: normalised MSE of the rolled-out states, step weights proportional to h^-1/2 (h = 1..25),
+Loss: normalised MSE of the rolled-out states, step weights proportional to h^-1/2 (h = 1..H),
 window factors 5 (snap) and 3 (fast motion). Early stopping and model selection use the
-validation windows only; the sealed windows never come near this module.
+validation windows only; the sealed windows never come near this module. History, look-ahead and
+horizon are the windows' own (windows.py stores them with the arrays).
 """
 
 from __future__ import annotations
@@ -12,12 +13,12 @@ import time
 import numpy as np
 import torch
 
-from .model import HISTORY, HORIZON, LOOKAHEAD, TIP, Dynamics, norm_stats
+from .model import TIP, Dynamics, norm_stats
 
 SNAP_FACTOR, FAST_FACTOR = 5.0, 3.0
 
 
-def step_weights(horizon: int = HORIZON) -> torch.Tensor:
+def step_weights(horizon: int) -> torch.Tensor:
     """w_h proportional to h^-1/2, mean 1, so the loss stays on the scale of a per-step MSE."""
     w = torch.arange(1, horizon + 1, dtype=torch.float32) ** -0.5
     return w / w.mean()
@@ -34,13 +35,16 @@ def group_start(group: np.ndarray) -> np.ndarray:
     return starts[np.searchsorted(starts, np.arange(len(group)), side="right") - 1]
 
 
-def batch(W: dict, anchors: np.ndarray, horizon: int = HORIZON):
+def batch(W: dict, anchors: np.ndarray, horizon: int | None = None):
     """Tensors of a rollout from anchors t: xs x_{t-20..t} (B, 21, 21), us u_{t-19..t+H+4},
-    targets x_{t+1..t+H}. The frame before the history repeats x_{t-19} at a group's first anchor."""
+    targets x_{t+1..t+H} (H: the windows' horizon unless given). The frame before the history
+    repeats x_{t-19} at a group's first anchor."""
+    history, lookahead = int(W["history"]), int(W["lookahead"])
+    horizon = int(W["horizon"]) if horizon is None else horizon
     a = np.asarray(anchors)[:, None]
     g0 = W["_start"][a[:, 0]][:, None]
-    xi = np.maximum(a + np.arange(-HISTORY, 1), g0)
-    ui = a + np.arange(-HISTORY + 1, horizon + LOOKAHEAD)
+    xi = np.maximum(a + np.arange(-history, 1), g0)
+    ui = a + np.arange(-history + 1, horizon + lookahead)
     ti = a + np.arange(1, horizon + 1)
     X, U = W["X"], W["U"]
     return torch.from_numpy(X[xi]), torch.from_numpy(U[ui]), torch.from_numpy(X[ti])
@@ -55,7 +59,7 @@ def prepare(W: dict) -> dict:
 
 def rollout_loss(model: Dynamics, W: dict, idx: np.ndarray, wh: torch.Tensor) -> torch.Tensor:
     xs, us, y = batch(W, W["anchors"][idx])
-    pred = model.rollout(xs, us, HORIZON)
+    pred = model.rollout(xs, us, y.shape[1])
     e = ((pred - y) / model.x_sd) ** 2  # normalised squared error (B, H, 21)
     f = torch.from_numpy(W["factor"][idx])
     per = (e.mean(-1) * wh).mean(-1)  # (B,)
@@ -64,12 +68,12 @@ def rollout_loss(model: Dynamics, W: dict, idx: np.ndarray, wh: torch.Tensor) ->
 
 @torch.no_grad()
 def evaluate_loss(model, W, idx, wh, bs=1024):
-    """Weighted loss and mean tip error at h = 25 (mm) over fixed validation windows."""
+    """Weighted loss and mean tip error at h = H (mm) over fixed validation windows."""
     num = den = tip = 0.0
     for i in range(0, len(idx), bs):
         j = idx[i:i + bs]
         xs, us, y = batch(W, W["anchors"][j])
-        pred = model.rollout(xs, us, HORIZON)
+        pred = model.rollout(xs, us, y.shape[1])
         e = ((pred - y) / model.x_sd) ** 2
         f = torch.from_numpy(W["factor"][j])
         num += float(((e.mean(-1) * wh).mean(-1) * f).sum())
@@ -87,22 +91,25 @@ def train(
     Wtr: dict,
     Wva: dict,
     seed: int,
-    epochs: int = 30,
-    windows_per_epoch: int = 20000,
-    val_windows: int = 4000,
-    batch_size: int = 256,
-    lr: float = 2e-3,
-    patience: int = 5,
+    *,
+    epochs: int,
+    windows_per_epoch: int,
+    val_windows: int,
+    batch_size: int,
+    lr: float,
+    patience: int,
     log=print,
 ) -> tuple[Dynamics, list[dict]]:
-    """Fit one seed. Returns the model of the best validation epoch and the learning curve."""
+    """Fit one seed (sizes and optimiser settings: config `dynamics` and the budget's). Returns the
+    model of the best validation epoch and the learning curve."""
     seed_all(seed)
     rng = np.random.default_rng(seed)
     Wtr, Wva = prepare(Wtr), prepare(Wva)
-    model = Dynamics(norm_stats(Wtr["X"], Wtr["U"], Wtr["group"]))  # training split only
+    # Normalisation from the training split only; the look-ahead is the windows'.
+    model = Dynamics(norm_stats(Wtr["X"], Wtr["U"], Wtr["group"]), int(Wtr["lookahead"]))
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
-    wh = step_weights()
+    wh = step_weights(int(Wtr["horizon"]))
     # The same validation windows for every seed and epoch (seeded apart from the model seed).
     nva = len(Wva["anchors"])
     val_idx = np.sort(np.random.default_rng(0).choice(nva, min(val_windows, nva), replace=False))

@@ -9,8 +9,6 @@ import numpy as np
 
 from . import style
 
-DT = 0.02
-
 
 def _band(ax, x, per_seed: np.ndarray, color, label):
     """Median line and min-max band over seeds (rows)."""
@@ -18,7 +16,10 @@ def _band(ax, x, per_seed: np.ndarray, color, label):
     ax.plot(x, np.median(per_seed, 0), color=color, lw=1.1, label=label)
 
 
-def plot_gates(persistence: dict, validation: list[dict], gate: dict, pdf: str, png: str) -> None:
+def plot_gates(persistence: dict, validation: list[dict], gate: dict, dt: float, horizon: int, pdf: str,
+               png: str) -> None:
+    """dt: the grid step of the horizons in `persistence` and `validation`; horizon: the trained
+    rollout length in steps (both the protocol's)."""
     style.setup()
     fig, axes = plt.subplots(1, 3, figsize=(style.TEXT_WIDTH_IN, 2.2))
     fig.subplots_adjust(left=0.07, right=0.99, bottom=0.19, top=0.9, wspace=0.42)
@@ -26,16 +27,16 @@ def plot_gates(persistence: dict, validation: list[dict], gate: dict, pdf: str, 
 
     # (a) tip error over the horizon; the trained horizon ends at 0.5 s, 0.7 s continues the rollout
     ax = axes[0]
-    s = np.array(persistence["h"]) * DT
+    s = np.array(persistence["h"]) * dt
     ax.plot(s, persistence["tip_mm"], color=c_pers, lw=1.1, label="Persistence")
     _band(ax, s, np.array([v["tip_mm"] for v in validation]), c_gru, f"GRU ({len(validation)} seeds)")
-    ax.axvline(0.5, color="0.6", ls=":", lw=0.8)
-    for t in (0.3, 0.5, 0.7):
-        k = round(t / DT) - 1
+    ax.axvline(horizon * dt, color="0.6", ls=":", lw=0.8)
+    for t in map(float, validation[0]["at_s_mm"]):  # the report horizons
+        k = round(t / dt) - 1
         ax.plot([s[k]] * len(validation), [v["tip_mm"][k] for v in validation], "o", ms=2.5, color=c_gru)
     ax.set_xlabel("Horizon (s)")
     ax.set_ylabel("Validation tip error (mm)")
-    ax.set_xlim(0, s[-1] + 0.02)
+    ax.set_xlim(0, s[-1] + dt)  # one step of margin
     ax.set_ylim(0, None)
     style.panel_label(ax, "a")
 
@@ -46,7 +47,7 @@ def plot_gates(persistence: dict, validation: list[dict], gate: dict, pdf: str, 
     ttau = np.array([t["tau"] for t in tr])
     for ax, meas, pred, scale, ylabel, letter in (
         (axes[1], "v_meas", "v_pred", 1.0, "Peak tip speed (m/s)", "b"),
-        (axes[2], "travel_meas_m", "travel_pred_m", 1e3, "Tip travel, hold to S1 + 0.75 s (mm)", "c"),
+        (axes[2], "travel_meas_m", "travel_pred_m", 1e3, f"Tip travel, hold to S1 + {gate['window']['after_s1_s']:g} s (mm)", "c"),
     ):
         ax.scatter(ttau, [t[meas] * scale for t in tr], s=6, color=c_meas, lw=0, alpha=0.45)
         ax.plot(tau, [p[meas] * scale for p in per], color=c_meas, lw=1.1, marker="o", ms=2.5, label="Measured")

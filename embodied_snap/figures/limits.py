@@ -13,7 +13,9 @@ from . import style
 MODES = (("direct", "Direct"), ("ramped", "Ramped"), ("instantaneous", "Instant."))
 
 
-def plot_limits(servo: dict, release: dict, attachment: dict, pdf: str, png: str, seed: int = 0) -> None:
+def plot_limits(servo: dict, release: dict, attachment: dict, pdf: str, png: str, seed: int = 0, *,
+                attach_speed_mps: float) -> None:
+    """attach_speed_mps: the protocol's attachment threshold, drawn as the dashed line in (b, c)."""
     style.setup()
     fig, axes = plt.subplots(1, 3, figsize=(style.TEXT_WIDTH_IN, 2.2), gridspec_kw=dict(wspace=0.45))
     c_ceil, c_snap, c_ok, c_no = style.PALETTE[0], style.PALETTE[1], style.PALETTE[2], style.PALETTE[7]
@@ -38,7 +40,7 @@ def plot_limits(servo: dict, release: dict, attachment: dict, pdf: str, png: str
     ax = axes[1]
     lo, hi = release["direct_range_mps"]
     ax.axhspan(lo, hi, color=c_ceil, alpha=0.18, lw=0, label="Direct range")
-    ax.axhline(1.0, color="k", ls="--", lw=0.8, label="1 m/s")
+    ax.axhline(attach_speed_mps, color="k", ls="--", lw=0.8, label=f"{attach_speed_mps:g} m/s")
     rng = np.random.default_rng(seed)  # horizontal jitter of the dots only
     for i, (key, _) in enumerate(MODES):
         v = np.array(release["speeds"][key])
@@ -74,7 +76,7 @@ def plot_limits(servo: dict, release: dict, attachment: dict, pdf: str, png: str
         ax.set_xlim(lo_v, hi_v)
     ax.scatter(v[ok], tilt[ok], s=9, color=c_ok, lw=0, label="Attached")
     ax.scatter(v[~ok], tilt[~ok], s=9, facecolors="none", edgecolors=c_no, lw=0.6, label="Missed")
-    ax.axvline(1.0, color="k", ls="--", lw=0.8)
+    ax.axvline(attach_speed_mps, color="k", ls="--", lw=0.8)
     ax.set_xlabel("Peak tip speed (m/s)")
     ax.set_ylabel("Cup-axis tilt (deg)")
     ax.legend(frameon=False, fontsize=6.5, loc="upper left", bbox_to_anchor=(0, 1.13), ncol=2,

@@ -10,7 +10,8 @@ import matplotlib.pyplot as plt
 from . import style
 
 
-def plot_snap(snap: dict, sweep: dict, pdf: str, png: str) -> None:
+def plot_snap(snap: dict, sweep: dict, pdf: str, png: str, *, attach_speed_mps: float) -> None:
+    """attach_speed_mps: the protocol's attachment threshold, drawn as the dashed line in (b)."""
     style.setup()
     fig, axes = plt.subplots(1, 3, figsize=(style.TEXT_WIDTH_IN, 2.2), gridspec_kw=dict(wspace=0.55))
     c_ok, c_no, c_band = style.PALETTE[2], style.PALETTE[7], style.PALETTE[0]
@@ -44,7 +45,7 @@ def plot_snap(snap: dict, sweep: dict, pdf: str, png: str) -> None:
     ax.axvspan(*_span(sweep["speed_optimal_taus"], per), color=c_band, alpha=0.18, lw=0)
     ax.scatter(tau, [t["v"] for t in sweep["trials"]], s=7, color=style.PALETTE[3], lw=0, alpha=0.8)
     ax.plot([p["tau"] for p in per], [p["v_median"] for p in per], color="k", lw=0.9)
-    ax.axhline(1.0, color="k", ls="--", lw=0.8)
+    ax.axhline(attach_speed_mps, color="k", ls="--", lw=0.8)
     ax.set_xlabel(r"S1 delay $\tau$ (s)")
     ax.set_ylabel("Peak tip speed (m/s)")
     style.panel_label(ax, "b")

@@ -23,7 +23,7 @@ def decode(u: np.ndarray, ranges: dict) -> dict[str, np.ndarray]:
     return out
 
 
-def workspace_clamp(act: dict, bearing_deg: np.ndarray, ws: dict, frac: float = 0.9) -> dict:
+def workspace_clamp(act: dict, bearing_deg: np.ndarray, ws: dict, frac: float) -> dict:
     """rho_i <- min(rho_i, frac * rho_i_max(bearing)) from the recorded directional workspace: the
     largest recorded preload per bearing bin (ws: bin_lo_deg, bin_width_deg, rho_max (bins, 3))."""
     k = np.clip(((bearing_deg - ws["bin_lo_deg"]) // ws["bin_width_deg"]).astype(int), 0, len(ws["rho_max"]) - 1)

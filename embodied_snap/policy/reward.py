@@ -2,7 +2,7 @@
 
 At closest approach (after the S1 release) the cup-face error l is projected onto the target plane
 and g is its signed gap along the face normal; v_pk and t_pk are the peak tip speed and its time,
-t_ca the closest-approach time.
+t_ca the closest-approach time; dt is the protocol's grid step.
 
     G = sig((d_f - |g|) / s_g),  A = G/2 sum_{q=a,b} exp(-l^2 / 2 s_q^2),
     S = sig((v_pk - v_min) / v_s),  H = exp(-(t_ca - t_pk)^2 / 2 s_t^2)            (Eq. 9)
@@ -14,27 +14,26 @@ from __future__ import annotations
 
 import numpy as np
 
-DT = 0.02
-
 
 def sigmoid(z):
     return 1.0 / (1.0 + np.exp(-z))
 
 
-def strike(cup: np.ndarray, tip: np.ndarray, p: np.ndarray, normal: np.ndarray, k_s1: np.ndarray) -> dict:
-    """cup, tip (N, K+1, 3) predicted (ensemble mean); target p and unit face normal (N, 3); k_s1 (N,)
-    the first step after the S1 release. Closest approach is searched from k_s1 on."""
+def strike(cup: np.ndarray, tip: np.ndarray, p: np.ndarray, normal: np.ndarray, k_s1: np.ndarray, dt: float) -> dict:
+    """cup, tip (N, K+1, 3) predicted (ensemble mean) on a grid of step dt; target p and unit face
+    normal (N, 3); k_s1 (N,) the first step after the S1 release. Closest approach is searched from
+    k_s1 on."""
     rel = cup - p[:, None]
     gap = (rel * normal[:, None]).sum(-1)
     lat = np.linalg.norm(rel - gap[..., None] * normal[:, None], axis=-1)
     dist = np.linalg.norm(rel, axis=-1)
     k = np.arange(cup.shape[1])
     k_ca = np.argmin(np.where(k[None] >= k_s1[:, None], dist, np.inf), 1)
-    v = np.linalg.norm(np.diff(tip, axis=1), axis=-1) / DT  # speed over step k -> k+1
+    v = np.linalg.norm(np.diff(tip, axis=1), axis=-1) / dt  # speed over step k -> k+1
     k_pk = np.argmax(v, 1)
     i = np.arange(len(p))
     return dict(lateral_m=lat[i, k_ca], gap_m=gap[i, k_ca], miss_m=dist[i, k_ca],
-                v_pk_mps=v[i, k_pk], t_pk_s=(k_pk + 0.5) * DT, t_ca_s=k_ca * DT)
+                v_pk_mps=v[i, k_pk], t_pk_s=(k_pk + 0.5) * dt, t_ca_s=k_ca * dt)
 
 
 def reward(s: dict, c_h, p_snap, disagreement, c: dict) -> np.ndarray:

@@ -2,10 +2,11 @@
 
 For commands (rho1, rho2, rho3, s3, dphi, tau) and canonical targets: the hold model gives the
 pre-release configuration at bearing phi0 + dphi (the state history before the S2 release), the
-primitive's goal map (twin.protocols.release_goals, the same map the servos get) gives the nine
+primitive's goal map (embodied_snap.primitive.release_goals, the same map the servos get) gives the nine
 goal schedules through the S2 and S1 releases, and the three-seed GRU ensemble rolls the arm out
 (Eq. 4) until after_s1 past the latest S1 release. The cup is the tracked tip extended along the
-tip axis by the end effector's length. Reward and attachment follow Eq. 9-11.
+tip axis by the end effector's length. Reward and attachment follow Eq. 9-11. The grid step, the
+window history, the canonical bearing, the S2 ramp and the timing set are the protocol's.
 """
 
 from __future__ import annotations
@@ -16,27 +17,31 @@ import numpy as np
 
 from ..characterize import snap as SN
 from ..dynamics import hold
-from ..dynamics.model import AXIS, HISTORY, LOOKAHEAD, TIP
+from ..dynamics.model import AXIS, TIP
 from ..dynamics.rollout import Ensemble
-from ..twin.protocols import PHI0_DEG, release_goals
+from ..primitive import release_goals
+from ..protocol import Protocol
 from . import reward as RW
 from .actions import project_timing, workspace_clamp
 
-DT = RW.DT
-ANCHOR_S = -DT / 2  # the hold's last frame lies half a frame before the S2 release starts
-
 
 class Simulator:
-    def __init__(self, ensemble, bank: dict, snap, workspace: dict, cfg: dict, after_s1: float, ee_m: float):
+    def __init__(self, ensemble, bank: dict, snap, workspace: dict, cfg: dict, after_s1: float, ee_m: float,
+                 proto: Protocol):
+        """cfg: config `policy`; proto: the protocol's sampling, windows and primitive sections."""
         self.ens, self.bank, self.snap, self.ws, self.cfg, self.ee_m = ensemble, bank, snap, workspace, cfg, ee_m
-        self.timing = tuple(cfg["ranges"]["tau"])
-        self.H = int(np.ceil((self.timing[1] + after_s1 - ANCHOR_S) / DT))
+        self.dt, self.history = proto.sampling.dt, proto.windows.history
+        self.phi0, self.s2_ramp = proto.primitive.phi0_deg, proto.primitive.s2_ramp_s
+        self.timing = proto.primitive.timing_s
+        dt = self.dt
+        self.anchor_s = -dt / 2  # the hold's last frame lies half a frame before the S2 release starts
+        self.H = int(np.ceil((self.timing[1] + after_s1 - self.anchor_s) / dt))
         # goal times relative to the S2 release: u_{t-20} .. u_{t+H+4} around the anchor t
-        self.t_u = ANCHOR_S + DT * np.arange(-HISTORY, self.H + LOOKAHEAD)
+        self.t_u = self.anchor_s + dt * np.arange(-self.history, self.H + ensemble.lookahead)
 
     def commands(self, act: dict) -> dict:
         """Workspace clamp in the commanded bearing, then Eq. 8."""
-        act = workspace_clamp(act, PHI0_DEG + act["dphi"], self.ws, self.cfg["workspace_fraction"])
+        act = workspace_clamp(act, self.phi0 + act["dphi"], self.ws, self.cfg["workspace_fraction"])
         act["tau"] = project_timing(act["tau"], self.timing)
         return act
 
@@ -44,13 +49,13 @@ class Simulator:
         """Clamped commands act {name: (N,)} against canonical targets p, normals (N, 3)."""
         act = self.commands(act)
         rho = np.stack([act["rho1"], act["rho2"], act["rho3"]], -1)
-        U = release_goals(rho, act["s3"], PHI0_DEG + act["dphi"], self.t_u, 0.0, act["tau"])
-        xs, c_h = hold.start(self.bank, act, U[:, :HISTORY + 1])
+        U = release_goals(rho, act["s3"], self.phi0 + act["dphi"], self.t_u, 0.0, act["tau"], self.s2_ramp)
+        xs, c_h = hold.start(self.bank, act, U[:, :self.history + 1])
         out = self.ens.rollout(xs, U[:, 1:], self.H, parts=(TIP, AXIS))
         tip, axis = out["mean_parts"]
         cup = tip + self.ee_m * axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-        k_s1 = np.ceil((act["tau"] - ANCHOR_S) / DT).astype(int)
-        s = RW.strike(cup, tip, p, normal, k_s1)
+        k_s1 = np.ceil((act["tau"] - self.anchor_s) / self.dt).astype(int)
+        s = RW.strike(cup, tip, p, normal, k_s1, self.dt)
         p_snap = self.snap.predict(act["rho1"], act["rho2"])
         dis = out["disagreement"].mean(-1)
         r = RW.reward(s, c_h, p_snap, dis, self.cfg["reward"])
@@ -58,9 +63,9 @@ class Simulator:
 
 
 def from_files(models, bank_path, snap_path, workspace_path, cfg: dict, after_s1: float, ee_m: float,
-               device=None):
+               proto: Protocol, device=None):
     """The simulator of a workflow job: ensemble, hold bank, P_snap and workspace from their files."""
     with np.load(bank_path) as z:
         bank = {k: z[k] for k in ("q", "x", "n")}
     ws = json.load(open(workspace_path))
-    return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, cfg, after_s1, ee_m), ws
+    return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, cfg, after_s1, ee_m, proto), ws

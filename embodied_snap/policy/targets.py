@@ -1,7 +1,7 @@
 """Where the arm can strike, and the simulated target sets drawn from it (paper IV-B, V-A).
 
 The workspace is measured on the training-split dynamics groups only, in the canonical bearing
-(each group rotated about the hanging axis n by phi0 - its commanded bearing):
+phi0 (the protocol's; each group rotated about the hanging axis n by phi0 - its commanded bearing):
 - the strike cloud: the cup (tip + end effector along the tip axis) at the peak tip speed after the
   S1 release, and the cup's direction of travel there;
 - Delta_str: median strike bearing minus commanded bearing;
@@ -22,11 +22,11 @@ from .. import bearing as BR
 from ..dynamics.hold import release_row, rotate_states
 from ..dynamics.model import AXIS, TIP
 from ..resample import STATE_COLUMNS
-from ..twin.protocols import PHI0_DEG
 
 
-def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float, ee_m: float,
+def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float, ee_m: float, phi0_deg: float,
               bin_deg: float = 10.0) -> dict:
+    phi0 = float(phi0_deg)  # a float in the JSON, however the config spells it
     pts, dirs, dstr, prog = [], [], [], []
     for gid, f in frames.groupby("group_id", sort=True):
         m = metas[gid]
@@ -38,14 +38,14 @@ def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float,
         i0, i1 = release_row(t, L["t_s1"]) + 1, release_row(t, L["t_s1"] + after_s1)
         if i1 <= i0 + 1:
             continue
-        X = rotate_states(f[STATE_COLUMNS].to_numpy(np.float64)[i0:i1 + 2], PHI0_DEG - P["bearing"], n)
+        X = rotate_states(f[STATE_COLUMNS].to_numpy(np.float64)[i0:i1 + 2], phi0 - P["bearing"], n)
         cup = X[:, TIP] + ee_m * X[:, AXIS] / np.linalg.norm(X[:, AXIS], axis=1, keepdims=True)
         v = np.linalg.norm(np.diff(X[:, TIP], axis=0), axis=1)
         k = int(np.argmax(v[:-1]))
         pts.append(cup[k])
         d = cup[k + 1] - cup[k]
         dirs.append(d / np.linalg.norm(d))
-        dstr.append((BR.bearing_deg(cup[k], n) - PHI0_DEG + 180) % 360 - 180)
+        dstr.append((BR.bearing_deg(cup[k], n) - phi0 + 180) % 360 - 180)
     prog = np.asarray(prog)
     lo = float(np.floor(prog[:, 0].min() / bin_deg) * bin_deg)
     nb = int(np.ceil((prog[:, 0].max() - lo) / bin_deg)) or 1
@@ -60,7 +60,7 @@ def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float,
             rmax[b] = rmax[near[np.argmin(np.abs(near - b))]]
     return {
         "hanging_axis": [float(x) for x in n],
-        "phi0_deg": PHI0_DEG,
+        "phi0_deg": phi0,
         "delta_str_deg": float(np.median(dstr)),
         "n_strikes": len(pts),
         "strike_points_m": np.round(np.asarray(pts), 5).tolist(),

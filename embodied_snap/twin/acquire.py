@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
+from ..protocol import Protocol
 from . import mocap as MC
 from . import protocols as P
 from . import servo as SV
@@ -33,11 +34,12 @@ def _rot_y(deg: float) -> np.ndarray:
 _NOMINAL_STRIKE: dict = {}
 
 
-def nominal_strike(dt: float) -> dict:
-    """Where the operating-point snap's cup passes at peak speed (bearing PHI0), in the arm frame.
-    One simulation per process, nominal parameters: the operator's reference placement."""
-    if dt not in _NOMINAL_STRIKE:
-        goals, _ = P.primitive(P.OPERATING, P.PHI0_DEG, dt)
+def nominal_strike(dt: float, proto: Protocol) -> dict:
+    """Where the operating-point snap's cup passes at peak speed (the canonical bearing), in the
+    arm frame. One simulation per process, nominal parameters: the operator's reference placement."""
+    key = (dt, proto.primitive.phi0_deg, proto.primitive.s2_ramp_s, proto.rig.rated_speed_tick_s)
+    if key not in _NOMINAL_STRIKE:
+        goals, _ = P.primitive(P.OPERATING, proto.primitive.phi0_deg, dt, proto)
         sv = TR.servo_params(0)
         pres = SV.present_from_goal(goals, dt, np.full(9, np.mean(sv["rate"])), np.full(9, SV.TAU_NOMINAL))
         tr = sim.run(dict(TR.M.NOMINAL), pres, dt, TR.LATCH)
@@ -45,15 +47,15 @@ def nominal_strike(dt: float) -> dict:
         v = np.convolve(v, np.ones(8) / 8, mode="same")
         k = int(np.argmax(v))
         vel = (tr.cup[k + 4] - tr.cup[k - 4]) / (8 * dt)
-        _NOMINAL_STRIKE[dt] = dict(pos=tr.cup[k].copy(), vel=vel)
-    return _NOMINAL_STRIKE[dt]
+        _NOMINAL_STRIKE[key] = dict(pos=tr.cup[k].copy(), vel=vel)
+    return _NOMINAL_STRIKE[key]
 
 
-def place_target(bearing: float, offset: np.ndarray, dt: float) -> dict:
+def place_target(bearing: float, offset: np.ndarray, dt: float, proto: Protocol) -> dict:
     """Block with its striking face toward the incoming cup, `offset` (m, arm frame) from the
     nominal strike point, a little beyond it so the cup arrives still fast."""
-    ns = nominal_strike(dt)
-    Ry = _rot_y(bearing - P.PHI0_DEG)
+    ns = nominal_strike(dt, proto)
+    Ry = _rot_y(bearing - proto.primitive.phi0_deg)
     v = Ry @ ns["vel"]
     n = -v / np.linalg.norm(v)  # face normal points back at the incoming cup
     pos = Ry @ ns["pos"] + 0.03 * (-n) + offset
@@ -74,8 +76,10 @@ def _uniform(r, box):
     return float(r.uniform(*box))
 
 
-def draw_program(row: dict, r: np.random.Generator) -> dict:
-    """The commanded program of one group (what the operator chose)."""
+def draw_program(row: dict, r: np.random.Generator, proto: Protocol) -> dict:
+    """The commanded program of one group (what the operator chose); dynamics groups draw from
+    the policy's action ranges."""
+    box = proto.primitive.ranges
     es, cat = row["evidence_set"], row["category"]
     n = int(str(row["group_id"]).split("_")[-1])
     op = P.OPERATING
@@ -87,7 +91,7 @@ def draw_program(row: dict, r: np.random.Generator) -> dict:
         return dict(kind="direct", rho1=float(r.uniform(2600, 3000)), rho2=float(r.uniform(2200, 2600)), rho3=float(r.uniform(650, 1000)), s3=0.0, dphi=0.0, tau=0.0, bearing=float(r.uniform(190, 230)))
     prog = dict(kind="primitive", s3=float(op["s3"]), dphi=0.0, tau=float(op["tau"]), **jit(60.0))
     if es == "release_mode":
-        prog.update(jit(120.0), tau=float(r.uniform(0.45, 0.675)))
+        prog.update(jit(120.0), tau=_uniform(r, box["tau"]))  # the timing set
         if cat == "ramped":
             prog.update(kind="ramped", ramp_s=float(r.uniform(1.0, 6.0)))
         else:
@@ -99,16 +103,16 @@ def draw_program(row: dict, r: np.random.Generator) -> dict:
         prog.update(jit(150.0), tau=float(r.uniform(0.40, 0.70)))
     elif es == "dynamics":
         if cat in ("free_space", "target", "sealed"):
-            prog.update({k: _uniform(r, P.POLICY_BOX[k]) for k in ("rho1", "rho2", "rho3", "dphi", "tau")})
-            prog["s3"] = float(P.POLICY_BOX["s3"][1] * r.uniform(0, 1) ** 2)  # quadratic map: dense near 0
+            prog.update({k: _uniform(r, box[k]) for k in ("rho1", "rho2", "rho3", "dphi", "tau")})
+            prog["s3"] = float(box["s3"][1] * r.uniform(0, 1) ** 2)  # quadratic map: dense near 0
         elif cat == "pilot":
             prog.update(jit(200.0), tau=float(r.uniform(0.3, 0.8)))
         elif cat == "characterisation":
-            prog.update(rho1=_uniform(r, P.POLICY_BOX["rho1"]), rho2=_uniform(r, P.POLICY_BOX["rho2"]))
+            prog.update(rho1=_uniform(r, box["rho1"]), rho2=_uniform(r, box["rho2"]))
     elif es == "held_base":
-        prog.update(jit(150.0), tau=float(r.uniform(0.45, 0.675)))
+        prog.update(jit(150.0), tau=_uniform(r, box["tau"]))
     spread = 2.0 if es == "delay_sweep" else 20.0
-    prog["bearing"] = float(P.PHI0_DEG + r.uniform(-spread, spread) + prog["dphi"])
+    prog["bearing"] = float(proto.primitive.phi0_deg + r.uniform(-spread, spread) + prog["dphi"])
     return prog
 
 
@@ -117,33 +121,33 @@ def has_target(row: dict) -> bool:
     return es in ("attachment", "delay_sweep") or (es == "dynamics" and cat in ("target", "sealed"))
 
 
-def simulate_group(row: dict, seed: int, dt: float = 0.001) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+def simulate_group(row: dict, seed: int, proto: Protocol, dt: float) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
     gid, session = str(row["group_id"]), str(row["session"])
     r = TR.rng_for(seed, "group", gid)
     sess = TR.session_params(seed, session)
     arm = TR.arm_params(sess)
     sv = TR.servo_params(seed)
-    prog = draw_program(row, r)
+    prog = draw_program(row, r, proto)
     target = None
     if has_target(row):
         if row["evidence_set"] == "delay_sweep":
             off = r.normal(0, 0.01, 3)
         else:
             off = r.normal(0, 0.05, 3)
-        target = place_target(prog["bearing"], off, dt)
+        target = place_target(prog["bearing"], off, dt, proto)
     if prog["kind"] == "burst":
         goals, times = P.burst(prog["section"], prog["bearing"], prog["amplitude"], dt)
     elif prog["kind"] == "direct":
-        goals, times = P.direct_release(prog, prog["bearing"], dt)
+        goals, times = P.direct_release(prog, prog["bearing"], dt, proto)
     else:
-        goals, times = P.primitive(prog, prog["bearing"], dt, ramp_s=prog.get("ramp_s", 0.0))
+        goals, times = P.primitive(prog, prog["bearing"], dt, proto, ramp_s=prog.get("ramp_s", 0.0))
     present = SV.present_from_goal(goals, dt, np.array(sv["rate"]), np.array(sv["tau"]))
     trial = sim.run(arm, present, dt, TR.LATCH, target=target, seal=TR.SEAL)
     ev = trial.events
     # --- observed labels (what the operator notes on the rig) ---
     vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / dt
     vtip = np.convolve(vtip, np.ones(4) / 4, mode="same")
-    labels = dict(snap_speed_event=bool(vtip.max() >= 1.0))
+    labels = dict(snap_speed_event=bool(vtip.max() >= proto.thresholds.attach_speed_mps))
     labels.update({k: round(float(v), 4) for k, v in times.items()})
     if target is not None:
         attached = ev["sealed"] is not None
@@ -196,9 +200,11 @@ def _recorded_at(gid: str, session: str) -> str:
     return (T0 + _dt.timedelta(days=day, seconds=90 * k)).isoformat()
 
 
-def acquire_groups(groups: "pd.DataFrame", raw_dir: str | Path, seed: int, dt: float = 0.001, progress: bool = True) -> list[dict]:
+def acquire_groups(groups: "pd.DataFrame", raw_dir: str | Path, seed: int, proto: Protocol, dt: float,
+                   progress: bool = True) -> list[dict]:
     """Simulate and write each group (rows: group_id, evidence_set, category, session; extra
-    columns ignored) via rawformat.write_group. Returns one index row per group."""
+    columns ignored) via rawformat.write_group under the protocol `proto` (its primitive, rig and
+    thresholds sections), integrated at dt (config twin.dt). Returns one index row per group."""
     rows = groups.to_dict("records") if isinstance(groups, pd.DataFrame) else list(groups)
     it = rows
     if progress:
@@ -207,7 +213,7 @@ def acquire_groups(groups: "pd.DataFrame", raw_dir: str | Path, seed: int, dt: f
         it = tqdm(rows, desc="twin", unit="group")
     out = []
     for row in it:
-        meta, mc, sl = simulate_group(row, seed, dt)
+        meta, mc, sl = simulate_group(row, seed, proto, dt)
         RF.write_group(raw_dir, meta, mc, sl)
         out.append(
             dict(

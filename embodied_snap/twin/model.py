@@ -93,7 +93,7 @@ def mjcf(p: dict) -> str:
             # the distal end of a section: the tracked marker frame
             body += f'<site name="{BODY_NAMES[s - 1]}" pos="0 {-L:.6f} 0"/>'
         if s == 4 and i == N_EE - 1:
-            # cup face: contacts the target block
+            # cup face: contacts the target block (a 2 cm sphere: simulated hardware, not a protocol value)
             body += (
                 f'<site name="cup" pos="0 {-L:.6f} 0"/>'
                 f'<geom name="cup_g" type="sphere" pos="0 {-L:.6f} 0" size="0.02" mass="0.0" '

@@ -5,7 +5,9 @@ Tip speed and section bend rates are read exactly as the characterisation stage 
 (`embodied_snap.characterize.mocap`): the `tip` body at 240 Hz, short dropouts bridged, a 3-sample
 moving average, central differences; section rate = angular speed of the relative rotation
 base->s1, s1->s2, s2->tip. Peaks are taken from the release start on. Tendon ceilings are the
-paper's Eq. 2 with its rated 3140 tick/s and its calibrated d_p/k (hardware figures, not twin truth).
+paper's Eq. 2 with the protocol's rated servo speed (config rig.rated_speed_tick_s) and the paper's
+calibrated d_p/k (hardware figures, not twin truth); the snap speed is read over the protocol's
+timing set and attachments against its attachment threshold.
 """
 
 from __future__ import annotations
@@ -19,17 +21,17 @@ from .. import rawformat as RF
 from ..io import read_parquet
 from ..characterize.load import release_start
 from ..characterize.mocap import peak, section_rates, tip_speed
+from ..protocol import Protocol
 
-RATED = 3140.0
-PAPER_LEVER = (2351.0, 1411.0, 1390.0)
-CEILING = tuple(RATED / x for x in PAPER_LEVER)  # rad/s, S1..S3
-OPERATING_TAU = (0.45, 0.675)
+PAPER_LEVER = (2351.0, 1411.0, 1390.0)  # d_p/k of the paper's arm: its Eq. 2 ceilings
 # Peaks are taken from slightly before the release starts (the 3-sample smoothing reaches back).
 LEAD_S = 0.05
 
 
-def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
-    """The issue's table, from the recordings."""
+def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> dict:
+    """The issue's table, from the recordings (proto: its rig, primitive and thresholds sections)."""
+    ceiling = tuple(proto.rig.rated_speed_tick_s / x for x in PAPER_LEVER)  # rad/s, S1..S3
+    timing, v_attach = proto.primitive.timing_s, proto.thresholds.attach_speed_mps
     g = pd.DataFrame(groups)
     rows = []
     for _, row in g.iterrows():
@@ -56,18 +58,18 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
     rel = d.es == "release_mode"
     out["direct_release_tip_speed_mps"] = med(rel & (d.cat == "direct"))
     inst = d.v[rel & (d.cat == "instantaneous")].dropna()
-    out["instant_release_fraction_over_1mps"] = float((inst > 1.0).mean()) if len(inst) else None
+    out["instant_release_fraction_over_1mps"] = float((inst > v_attach).mean()) if len(inst) else None
     out["n_instantaneous"] = int(len(inst))
     ramp = d.v[rel & (d.cat == "ramped")].dropna()
     out["ramped_tip_speed_mps_quantiles"] = [float(x) for x in np.quantile(ramp, [0.1, 0.5, 0.9])] if len(ramp) else None
     sw = d[d.es == "delay_sweep"]
     if len(sw):
-        op = sw[(sw.tau >= OPERATING_TAU[0] - 1e-9) & (sw.tau <= OPERATING_TAU[1] + 1e-9)]
+        op = sw[(sw.tau >= timing[0] - 1e-9) & (sw.tau <= timing[1] + 1e-9)]
         out["snap_tip_speed_mps"] = float(np.median(op.v)) if len(op) else None
         if len(op):
             r = np.median(np.array(list(op.rates)), axis=0)
             out["snap_section_rate_dps"] = [float(np.degrees(x)) for x in r]
-            out["snap_section_rate_ratio"] = [float(x / c) for x, c in zip(r, CEILING)]
+            out["snap_section_rate_ratio"] = [float(x / c) for x, c in zip(r, ceiling)]
         by = sw.groupby("tau").v.median()
         out["delay_sweep_peak_speed_by_tau"] = {f"{k:.3f}": float(v) for k, v in by.items()}
         out["delay_sweep_best_tau_s"] = float(by.idxmax())
@@ -81,7 +83,7 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame") -> dict:
     att = d[d.es == "attachment"]
     if len(att):
         a = att.attached.astype(bool)
-        out["attach_below_1mps"] = int((a & (att.v < 1.0)).sum())
+        out["attach_below_1mps"] = int((a & (att.v < v_attach)).sum())
         out["attachment_n"] = int(len(att))
         out["attachment_rate"] = float(a.mean())
     return out

@@ -1,26 +1,29 @@
 """What the operator commands in each evidence set: nine servo-goal traces plus the program record.
 
-Everything is in servo ticks and seconds. The preload map (`section_goals`) follows Eq. 1 of the
-paper: to bend section p by rho_p / (d_p/k) rad toward bearing phi, every cable that traverses p
-takes up rho_p * cos(phi - alpha_k); the antagonists (cos < 0) pay out 20 % more than that so they
-never fight the bend. During a release, goals only ever pay out (a released cable is never taken
-up again inside a trial), so the antagonists cannot pull against a latched fold.
+Everything is in servo ticks and seconds. The goal map itself (the Eq. 1 preload map and the
+instantaneous release) is the primitive's, shared with the pipeline: embodied_snap.primitive. The
+protocol numbers config carries (the canonical bearing, the S2 ramp, the policy ranges, the rated
+servo speed the ramps are planned under) come in as a `Protocol` (embodied_snap.protocol); what
+stays here is the simulated operator's own choice of programs.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-RATE_PLAN = 0.9 * 3140.0  # tick/s: preload ramps stay under the servo ceiling
-PHI0_DEG = 210.0  # bearing the primitive is validated around (paper IV-C)
+from ..primitive import cable_gains as _g
+from ..primitive import release_goals, section_goals
+from ..protocol import Protocol
+
+PLAN_MARGIN = 0.9  # preload ramps are planned at this fraction of the rated speed: under the ceiling
+# The simulated operator's operating point: where release-mode, sweep and held-base trials sit
+# (the pipeline finds its own operating point from P_snap; config has none).
 OPERATING = dict(rho1=3100.0, rho2=2750.0, rho3=2900.0, s3=30.0, dphi=0.0, tau=0.55)
-POLICY_BOX = dict(rho1=(2400, 3700), rho2=(2100, 3300), rho3=(2200, 3600), s3=(0, 1800), dphi=(-25, 25), tau=(0.45, 0.675))
 SWEEP_LOW = (0.15, 0.30)  # delay-sweep delays; none in (0.30, 0.45), as in the paper
 SWEEP_HIGH = (0.45, 0.50, 0.55, 0.60, 0.65, 0.70, 0.75)
 T_HANG = 0.25  # s of free hanging before anything moves
 T_SETTLE = 0.5  # s held at full preload
 T_S2 = 1.0  # s from S3 slack to the start of the S2 release: the latched tip settles
-S2_RAMP = 0.13  # s (paper III-B)
 T_AFTER = 1.1  # s recorded after the S1 release
 
 
@@ -34,32 +37,24 @@ def sweep_tau(n: int) -> float:
     return SWEEP_HIGH[k % len(SWEEP_HIGH)]
 
 
-def section_goals(rho, bearing_deg: float, slack3: float = 0.0) -> np.ndarray:
-    """Nine goals (ticks) for section take-ups rho = (rho1, rho2, rho3) toward a bearing."""
-    c = np.cos(np.deg2rad(bearing_deg - np.array([0.0, 120.0, 240.0])))
-    g = np.where(c >= 0, c, 1.2 * c)
-    cum = np.cumsum(np.asarray(rho, float))
-    w = (cum[:, None] * g[None, :]).reshape(9)
-    w[6:9] -= slack3
-    return w
-
-
-def _preload(rho, bearing, dt):
+def _preload(rho, bearing, dt, rated_tick_s):
     """Rest, then a linear ramp to the preload that every servo can follow (per-section scaling:
     all nine goals reach their targets together, so no cable runs ahead of its neighbours)."""
     W = section_goals(rho, bearing)
-    dur = max(np.abs(W).max() / RATE_PLAN, 0.2)
+    dur = max(np.abs(W).max() / (PLAN_MARGIN * rated_tick_s), 0.2)
     return W, dur
 
 
-def primitive(p: dict, bearing: float, dt: float, ramp_s: float = 0.0, s2_ramp: float = S2_RAMP):
-    """The four-stage snap primitive (paper III-B): preload, S3 slack, S2 over s2_ramp, S1 after tau.
+def primitive(p: dict, bearing: float, dt: float, proto: Protocol, ramp_s: float = 0.0):
+    """The four-stage snap primitive (paper III-B): preload, S3 slack, S2 over the protocol's S2
+    ramp, S1 after tau.
 
     ramp_s > 0 stretches the distal slackening (S3 slack and S2 release) over ramp_s seconds
     (the 'ramped' release mode); S1 then follows tau after the ramp ends.
     """
     rho = (p["rho1"], p["rho2"], p["rho3"])
-    W, dur = _preload(rho, bearing, dt)
+    W, dur = _preload(rho, bearing, dt, proto.rig.rated_speed_tick_s)
+    s2_ramp = proto.primitive.s2_ramp_s
     t_s = T_HANG + dur + T_SETTLE
     if ramp_s > 0:
         t2, s2_ramp = t_s, ramp_s
@@ -84,47 +79,22 @@ def primitive(p: dict, bearing: float, dt: float, ramp_s: float = 0.0, s2_ramp: 
         # a released cable is never taken up again: running minimum from the full preload
         goals[rel] = np.minimum.accumulate(np.vstack([W[None, :], g]), axis=0)[1:]
     else:
-        goals[rel] = release_goals(np.asarray(rho), p["s3"], bearing, tr, t2, t1)
+        goals[rel] = release_goals(np.asarray(rho), p["s3"], bearing, tr, t2, t1, s2_ramp)
     times = dict(t_preload=T_HANG, t_slack=t_s, t_s2=t2, t_s1=t1)
     return goals, times
 
 
-def release_goals(rho, s3, bearing, tr, t2, t1) -> np.ndarray:
-    """Goals (..., T, 9) of the instantaneous primitive at times tr (T,) after its S3 slack: S3 paid
-    out by s3, S2 released over S2_RAMP from t2, S1 at t1. rho (..., 3); s3, bearing, t2, t1 (...).
-    The same map turns the six policy parameters into servo goals for the model and the servos.
-    Each goal is monotone after the slack, so the never-take-up-again running minimum from the
-    full preload W is min(W, goal at the slack, goal now)."""
-    rho, e = np.asarray(rho, float), (..., None)
-    c = _g(np.asarray(bearing, float)[e])  # (..., 3)
-    t2, t1 = np.asarray(t2)[e], np.asarray(t1)[e]
-    a2 = np.where(tr < t2, 1.0, np.clip(1.0 - (tr - t2) / S2_RAMP, 0.0, 1.0))
-    a1 = (tr < t1).astype(float)
-    a2, a1 = np.broadcast_arrays(a2, a1)
-    one = np.ones(a1.shape[:-1] + (1,))
-    W = (np.cumsum(rho, -1)[..., :, None] * c[..., None, :]).reshape(*rho.shape[:-1], 1, 9)
-    return np.minimum(np.minimum(W, _release(rho, s3, c, one, one)), _release(rho, s3, c, a1, a2))
-
-
-def _release(rho, s3, c, a1, a2):
-    """Goals (..., T, 9) with S1 and S2 held at fractions a1, a2 (..., T) and S3 slack."""
-    r1, r2, r3 = (rho[..., k][..., None] for k in range(3))
-    cum = np.stack([r1 * a1, r1 * a1 + r2 * a2, r1 * a1 + r2 * a2 + r3 * 0.0], -1)  # (..., T, 3)
-    g = (cum[..., :, None] * c[..., None, None, :]).reshape(*cum.shape[:-1], 9)
-    g[..., 6:9] -= np.asarray(s3, float)[..., None, None] * 1.0
-    return g
-
-
-def direct_release(p: dict, bearing: float, dt: float, sync: bool = True):
+def direct_release(p: dict, bearing: float, dt: float, proto: Protocol, sync: bool = True):
     """Direct tendon-driven release: a preload, then the pull-side goals back to rest. With
     `sync` the nine goals ramp down together at the rated ceiling of the longest cable (the
     section-wise rate limit of the paper's protocol, so no cable runs ahead and goes spuriously
     slack); otherwise every goal steps to rest and each servo pays out at its own ceiling. The tip
     curl stays below the fold angle (no latch)."""
+    rated = proto.rig.rated_speed_tick_s
     rho = (p["rho1"], p["rho2"], p["rho3"])
-    W, dur = _preload(rho, bearing, dt)
+    W, dur = _preload(rho, bearing, dt, rated)
     t_r = T_HANG + dur + T_SETTLE
-    T_rel = np.abs(W).max() / 3140.0 if sync else 0.0
+    T_rel = np.abs(W).max() / rated if sync else 0.0
     t_end = t_r + np.abs(W).max() / 3000.0 + 0.6
     t = np.arange(int(round(t_end / dt))) * dt
     goals = np.zeros((len(t), 9))
@@ -151,8 +121,3 @@ def burst(section: int, bearing: float, amp: float, dt: float):
     goals = np.zeros((len(t), 9))
     goals[(t >= t_up) & (t < t_dn)] = W
     return goals, dict(t_up=t_up, t_down=t_dn)
-
-
-def _g(bearing):
-    c = np.cos(np.deg2rad(bearing - np.array([0.0, 120.0, 240.0])))
-    return np.where(c >= 0, c, 1.2 * c)

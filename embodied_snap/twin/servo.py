@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-RATE_RATED = 3140.0  # tick/s, rated 12 V no-load speed (paper III-A)
+# tick/s: the simulated servos' own no-load ceiling (their hardware truth, paper III-A), not the
+# protocol's rated speed, which the pipeline reads from config rig.rated_speed_tick_s.
+RATE_RATED = 3140.0
 TAU_NOMINAL = 0.03  # s, first-order time constant of a burst fit (paper III-A)
 SPOOL_RADIUS = 15.8e-6 * 4096 / (2 * np.pi)  # m: 15.8 um/tick over 4096 ticks/rev
 MA_PER_NM = 360.0  # mA per N m of output torque (XM430-W350 torque constant, approx.)

@@ -27,7 +27,7 @@ import numpy as np
 
 from . import model as M
 
-CUP_R = 0.02  # m, cup collision radius
+CUP_R = 0.02  # m, cup collision radius (simulated hardware, not a protocol value)
 CHECK_S = 0.004  # s between latch / seal checks (independent of dt)
 
 

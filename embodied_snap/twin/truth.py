@@ -18,6 +18,8 @@ from . import sim
 
 # Fold latch and cup seal (identified against paper III; see docs/twin.md).
 LATCH = dict(engage_rad=1.4, catch_rad=0.05, creep_s=1.32, open_m=0.0074, break_nm=30.0, curl_min=4.99, curl_max=5.445)
+# The seal's own physics (the simulated cup seals from 1 m/s): the twin's truth that the pipeline's
+# attachment threshold (config characterize.attach_speed_mps) is measured against, not a protocol value.
 SEAL = dict(gap_m=0.03, overlap_m=0.02, speed_mps=1.0, tilt_deg=120.0)
 BASE_LAB = (0.0, 1.45, 0.0)  # m: the arm's mount in the lab, Y up
 
@@ -50,7 +52,7 @@ def session_params(seed: int, session: str) -> dict:
     p["frictionloss"] = round(p["frictionloss"] * float(r.uniform(0.8, 1.2)), 6)
     base = np.asarray(BASE_LAB) + r.normal(0, 0.003, 3)  # the mount is re-measured each session
     tilt = r.normal(0, np.deg2rad(0.6), 3)  # calibration wand: small frame rotation
-    tilt[1] = r.uniform(-np.pi, np.pi) * 0.02  # and a little yaw
+    tilt[1] = r.uniform(-np.pi, np.pi) * 0.02  # and a little yaw (rig noise, not a protocol value)
 
     q = quat_from_rotvec(tilt)
     return dict(

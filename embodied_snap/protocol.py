@@ -1,0 +1,139 @@
+"""The experimental protocol, read once from the validated config.
+
+Every number that the paper fixes and config.yaml carries (the sampling rate and step, the window
+lengths, the attachment threshold, the timing set and action ranges, the primitive's S2 ramp and
+canonical bearing, the rig's rated servo speed and geometry) reaches code from here, as frozen
+dataclasses, never as a module constant. Workflow rules pass `params(config, *sections)` to their
+scripts as Snakemake params (so a changed value reruns exactly the jobs that use it) and the
+scripts rebuild the dataclasses with `from_params`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import MappingProxyType
+
+
+@dataclass(frozen=True)
+class Sampling:
+    """The state/command grid (paper IV-A)."""
+
+    hz: float
+    max_gap_s: float
+
+    @property
+    def dt(self) -> float:
+        # 1 / 50 is exactly the float 0.02 the pipeline always used.
+        return 1 / self.hz
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Training windows of the dynamics model, in grid steps (paper IV-A)."""
+
+    history: int
+    lookahead: int
+    horizon: int
+    stride: int
+    snap_speed_mps: float
+    fast_speed_mps: float
+
+
+@dataclass(frozen=True)
+class Primitive:
+    """The snap primitive's fixed parts (paper III-B, IV-C) and its commanded ranges (Eq. 7-8)."""
+
+    phi0_deg: float  # the canonical bearing the primitive is validated around
+    s2_ramp_s: float  # S2 is released over this long
+    ranges: MappingProxyType  # action -> (low, high); tau's range is the timing set T of Eq. 8
+
+    @property
+    def timing_s(self) -> tuple[float, float]:
+        return tuple(self.ranges["tau"])
+
+
+@dataclass(frozen=True)
+class Rig:
+    """What the recordings cannot give: the servos' datasheet speed and the arm's geometry."""
+
+    rated_speed_tick_s: float
+    tendon_radius_m: tuple
+    end_effector_m: float
+    arm_length_m: float  # S1+S2+S3 undeformed, without the end effector
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    attach_speed_mps: float  # the empirical attachment threshold (paper III-A)
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """The sections a job asked for; the others are None."""
+
+    sampling: Sampling | None = None
+    windows: Windows | None = None
+    primitive: Primitive | None = None
+    rig: Rig | None = None
+    thresholds: Thresholds | None = None
+
+
+_CLASSES = {"sampling": Sampling, "windows": Windows, "primitive": Primitive, "rig": Rig,
+            "thresholds": Thresholds}
+
+
+def _section(config: dict, name: str) -> dict:
+    """Plain values of one section, straight from the (validated) config. Numbers that land in
+    results as JSON are floats, however the YAML spells them (210 and 210.0 write differently)."""
+    if name == "sampling":
+        return dict(hz=config["resample"]["hz"], max_gap_s=config["resample"]["max_gap_s"])
+    if name == "windows":
+        return dict(config["windows"])
+    if name == "primitive":
+        p = config["primitive"]
+        return dict(phi0_deg=float(p["phi0_deg"]), s2_ramp_s=float(p["s2_ramp_s"]),
+                    ranges={k: list(v) for k, v in config["policy"]["ranges"].items()})
+    if name == "rig":
+        r = config["rig"]
+        return dict(rated_speed_tick_s=float(r["rated_speed_tick_s"]), tendon_radius_m=list(r["tendon_radius_m"]),
+                    end_effector_m=r["end_effector_m"], arm_length_m=float(r["arm_length_m"]))
+    if name == "thresholds":
+        return dict(attach_speed_mps=config["characterize"]["attach_speed_mps"])
+    raise KeyError(f"no protocol section {name!r}; known: {', '.join(_CLASSES)}")
+
+
+def params(config: dict, *sections: str) -> dict:
+    """The named sections as plain dicts and lists: a Snakemake param (all sections if none named)."""
+    return {s: _section(config, s) for s in (sections or _CLASSES)}
+
+
+def from_params(p: dict) -> Protocol:
+    """The dataclasses back from `params` (lists become tuples and dicts read-only mappings, so the
+    objects stay immutable)."""
+    def freeze(v):
+        if isinstance(v, dict):
+            return MappingProxyType({k: freeze(x) for k, x in v.items()})
+        return tuple(freeze(x) for x in v) if isinstance(v, (list, tuple)) else v
+
+    return Protocol(**{s: _CLASSES[s](**{k: freeze(v) for k, v in d.items()}) for s, d in p.items()})
+
+
+def load(config: dict) -> Protocol:
+    """The whole protocol of a config."""
+    return from_params(params(config))
+
+
+# The dynamics model's windows are counted in grid steps and the paper's report horizons
+# (0.3/0.5/0.7 s) must fall on the grid; both hold at the paper's 50 Hz.
+SUPPORTED_HZ = (50,)
+
+
+def unsupported(config: dict) -> str | None:
+    """One line naming the stage that cannot run this protocol, or None. Checked at start-up."""
+    hz = config["resample"]["hz"]
+    if hz not in SUPPORTED_HZ:
+        w = config["windows"]
+        return (f"resample.hz = {hz:g} is not supported by the dynamics stage: its windows (history "
+                f"{w['history']}, lookahead {w['lookahead']}, horizon {w['horizon']}) and report "
+                f"horizons are defined in 50 Hz steps (paper IV-A); only resample.hz = 50 runs")
+    return None
