@@ -124,8 +124,8 @@ def test_evaluation_target_in_selection(tmp_path):
     v = check_records(_run(tmp_path, targets={"training": range(0, 48), "selection": [100, 101, 250],
                                               "evaluation": range(200, 600)}))
     assert v == ["separation (targets): results/policy/targets_selection.parquet shares 1 target(s) with "
-                 "targets_evaluation.parquet (first: 250); docs/design.md 3: training, selection and evaluation "
-                 "targets are disjoint (separate seeds)"]
+                 "targets_evaluation.parquet (first: 250); docs/design.md 3: training, selection, evaluation, offset "
+                 "and release targets are disjoint (separate seeds)"]
 
 
 def test_targets_by_position(tmp_path):
