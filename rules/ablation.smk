@@ -31,9 +31,7 @@ rule ablation_targets:
     conda:
         "../envs/esnap.yaml"
     params:
-        sizes=dict(
-            offset=ABUDGET["offset_targets"], release=ABUDGET["release_targets"]
-        ),
+        sizes=dict(offset=ABUDGET["offset_targets"], release=ABUDGET["release_targets"]),
         seeds=ACFG["target_seeds"],
         starts=ACFG["starts_per_family"],
         arc_deg=PCFG["arc_deg"],

@@ -17,7 +17,8 @@ rule check_separation:
         ),
         # the claims tables come after every model, policy and target set: all records exist
         claims=expand(
-            "results/{stage}/claims.csv", stage=("characterize", "dynamics", "policy", "ablation")
+            "results/{stage}/claims.csv",
+            stage=("characterize", "dynamics", "policy", "ablation"),
         ),
         code=imports("check_separation"),
     output:

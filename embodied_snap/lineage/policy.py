@@ -36,7 +36,7 @@ DYN_REPORTS = ("table_dynamics_claims", "fig_gates", "figures")
 POLICY_RUNS = ("policy_search", "policy_evaluate", "policy_fixed", "policy_summary")
 POLICY_REPORTS = ("fig_benchmark", "table_policy_claims", "figures")
 # The release-rule ablation (paper V-A, V-B, Fig. 6): everything after the offset fit, and the fit.
-ABLATION_EVAL = ("ablation_rules", "ablation_summary", "fig_ablation", "table_ablation_claims")
+ABLATION_EVAL = ("ablation_rules", "ablation_summary", "fig_ablation", "table_ablation_claims", "figures")
 ABLATION_RUNS = ("ablation_offsets", "ablation_bend", "ablation_perturb", *ABLATION_EVAL)
 # Everything that uses the GRU models (trained on train, selected on validation windows).
 MODEL_USERS = (
@@ -110,7 +110,7 @@ POLICY: dict[str, Source] = {
         "the offset targets fit the event offsets of the release rules, nothing else",
         readers=("ablation_offsets", "check_separation")),
     "results/ablation/targets_release.parquet": Source(
-        ("ablation_rules", "ablation_summary", "fig_ablation", "table_ablation_claims"),
+        ABLATION_EVAL,
         "the release-evaluation targets are read only by the rule comparison, never by an offset fit",
         held_out=True, readers=("ablation_rules", "check_separation")),
 }
