@@ -4,7 +4,7 @@
     python bench/ablation_speed.py RESULTS_DIR [--threads N] [--offset 100] [--release 400] [--draws 8]
 
 RESULTS_DIR is a finished run's `results/` (dynamics models, hold bank, P_snap, workspace, the
-shared policy runs). Targets are drawn here as ablation_targets draws them, so a smoke run's
+shared policy runs, hold.json). Targets are drawn here as ablation_targets draws them, so a smoke run's
 results time the paper-sized stage: a rollout costs the same whatever budget trained the GRUs
 (same architecture and horizon). Prints the wall time of each part as the rules run it (the
 recorded-strike half of ablation_bend, Snakemake start-up and the summary, figure and claims jobs
@@ -74,7 +74,9 @@ def main():
     times["ablation_bend (model half)"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    perturb.sweep(sim, act, T, A["perturbation_scales"], a.draws, 60.0, 18.0, np.asarray(ws["hanging_axis"]), 0, 730.0)
+    H = json.load(open(R / "dynamics/hold.json"))
+    perturb.sweep(sim, act, T, A["perturbation_scales"], a.draws, H["tip_mm_median"], H["axis_deg_median"],
+                  np.asarray(ws["hanging_axis"]), cfg["seed"], H["tip_mm_median"] / H["tip_pct_arm_median"] * 100)
     times["ablation_perturb"] = time.perf_counter() - t0
 
     n_roll = (a.offset + a.release) * (1 + len(steps)) + a.release * (1 + len(A["perturbation_scales"]) * a.draws + 1)

@@ -21,7 +21,7 @@ def arm(thetas_deg, lengths=LENGTHS) -> np.ndarray:
     """State (12,) of three constant-curvature sections bending in the x-y plane by thetas (deg),
     base tangent -y: s1, s2, tip ends and the tip axis."""
     pos, phi, out = np.zeros(2), 0.0, []
-    for th, L in zip(np.radians(thetas_deg), lengths):
+    for th, L in zip(np.radians(thetas_deg), lengths, strict=True):
         # chord of an arc: length 2 R sin(th/2), direction at phi + th/2
         c = L if th == 0 else 2 * L / th * np.sin(th / 2)
         d = phi + th / 2

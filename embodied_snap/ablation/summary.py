@@ -5,7 +5,6 @@ attachment over the tolerance sweep for the learned policy and the best fixed pr
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from ..policy.reward import attached
