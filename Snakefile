@@ -28,6 +28,7 @@ include: "rules/data.smk"
 include: "rules/characterize.smk"
 include: "rules/dynamics.smk"
 include: "rules/policy.smk"
+include: "rules/ablation.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -43,4 +44,5 @@ rule all:
         "results/characterize/claims.csv",
         "results/dynamics/claims.csv",
         "results/policy/claims.csv",
+        "results/ablation/claims.csv",
         TWIN_REPORTS,

@@ -19,6 +19,7 @@ import torch
 import yaml
 
 from embodied_snap.policy import search, simulate
+from embodied_snap.protocol import load
 
 
 def main():
@@ -35,7 +36,7 @@ def main():
     R = a.results
     sim, ws = simulate.from_files(sorted(map(str, R.glob("dynamics/models/seed*.pt"))), R / "dynamics/hold_bank.npz",
                                   R / "characterize/snap.json", R / "policy/workspace.json", cfg["policy"],
-                                  cfg["dynamics"]["after_s1_s"], cfg["rig"]["end_effector_m"])
+                                  cfg["dynamics"]["after_s1_s"], cfg["rig"]["end_effector_m"], load(cfg))
     tr = pd.read_parquet(R / "policy/targets_training.parquet")
     train = search.Targets(tr, ws)
     sel = search.Targets(pd.read_parquet(R / "policy/targets_selection.parquet"), ws)

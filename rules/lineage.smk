@@ -12,9 +12,13 @@ rule check_separation:
             "results/policy/targets_{name}.parquet",
             name=("training", "selection", "evaluation"),
         ),
+        ablation_targets=expand(
+            "results/ablation/targets_{name}.parquet", name=("offset", "release")
+        ),
         # the claims tables come after every model, policy and target set: all records exist
         claims=expand(
-            "results/{stage}/claims.csv", stage=("characterize", "dynamics", "policy")
+            "results/{stage}/claims.csv",
+            stage=("characterize", "dynamics", "policy", "ablation"),
         ),
         code=imports("check_separation"),
     output:

@@ -7,6 +7,7 @@ FIGURES = [
     "fig3_snap",
     "fig4_gates",
     "fig5_benchmark",
+    "fig6_ablation",
 ]
 
 

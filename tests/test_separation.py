@@ -124,8 +124,8 @@ def test_evaluation_target_in_selection(tmp_path):
     v = check_records(_run(tmp_path, targets={"training": range(0, 48), "selection": [100, 101, 250],
                                               "evaluation": range(200, 600)}))
     assert v == ["separation (targets): results/policy/targets_selection.parquet shares 1 target(s) with "
-                 "targets_evaluation.parquet (first: 250); docs/design.md 3: training, selection and evaluation "
-                 "targets are disjoint (separate seeds)"]
+                 "targets_evaluation.parquet (first: 250); docs/design.md 3: training, selection, evaluation, offset "
+                 "and release targets are disjoint (separate seeds)"]
 
 
 def test_targets_by_position(tmp_path):
@@ -155,7 +155,7 @@ ALL = ["dynamics_train-00", "dynamics_validation-00", "dynamics_sealed-00", "del
 
 rule all:
     input: "results/dynamics/claims.csv", "results/figures/fig4.png", "results/twin/validation.json",
-           "results/policy/eval/shared_seed0.parquet",
+           "results/policy/eval/shared_seed0.parquet", "results/ablation/rules.parquet",
            ["results/dynamics/model_finetuned.pt"] if LEAK == "unnamed" else []
 
 rule twin_acquire:
@@ -220,6 +220,19 @@ rule policy_evaluate:
     input: "results/policy/runs/shared_seed0.json", "results/policy/targets_evaluation.parquet"
     output: "results/policy/eval/shared_seed0.parquet"
 
+rule ablation_targets:
+    output: expand("results/ablation/targets_{s}.parquet", s=("offset", "release"))
+
+rule ablation_offsets:
+    input:
+        "results/policy/runs/shared_seed0.json", "results/ablation/targets_offset.parquet",
+        ["results/ablation/targets_release.parquet"] if LEAK == "release_targets" else [],
+    output: "results/ablation/offsets.json"
+
+rule ablation_rules:
+    input: "results/ablation/offsets.json", "results/ablation/targets_release.parquet"
+    output: "results/ablation/rules.parquet"
+
 rule fig_gates:
     input: "results/dynamics/gate.json", "results/characterize/delay_sweep.json"
     output: "results/figures/fig4.png"
@@ -278,6 +291,57 @@ def test_dag_evaluation_targets_read_by_the_search(wf):
     assert v == ["separation (DAG): results/policy/runs/shared_seed0.json (rule policy_search) reads "
                  "results/policy/targets_evaluation.parquet; docs/design.md 3: "
                  + POLICY["results/policy/targets_evaluation.parquet"].rule]
+
+
+def test_dag_release_targets_read_by_the_offset_fit(wf):
+    v = check_dag(wf, config_overrides={"leak": "release_targets"})
+    assert v == ["separation (DAG): results/ablation/offsets.json (rule ablation_offsets) reads "
+                 "results/ablation/targets_release.parquet; docs/design.md 3: "
+                 + POLICY["results/ablation/targets_release.parquet"].rule]
+
+
+def test_dag_release_targets_reach_no_offset_fit():
+    # the offsets feed the rule comparison, never the other way round
+    rel = "results/ablation/targets_release.parquet"
+    assert not may_feed(rel, "ablation_offsets", {}) and may_feed(rel, "ablation_rules", {})
+    assert POLICY[rel].readers == ("ablation_rules", "check_separation") and POLICY[rel].held_out
+    off = "results/ablation/targets_offset.parquet"
+    assert POLICY[off].readers == ("ablation_offsets", "check_separation")
+
+
+def _ablation_targets(root, offset, release, leak=False):
+    for name, ids in {"offset": offset, "release": release}.items():
+        p = root / f"results/ablation/targets_{name}.parquet"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        pd.DataFrame({"target_id": list(ids)}).to_parquet(p)
+    files = [f"results/ablation/targets_{n}.parquet" for n in ("offset", "release")]
+    pv.write_record("ablation_targets", {}, [], files, {}, "t", root=root)
+    o = _write(root, "results/ablation/offsets.json", b"o")
+    pv.write_record("ablation_offsets", {}, files if leak else files[:1], [o], {}, "t", root=root)
+    return root
+
+
+def test_records_ablation_targets_disjoint(tmp_path):
+    assert check_records(_ablation_targets(_run(tmp_path), range(1000, 1100), range(2000, 2400))) == []
+
+
+def test_records_release_target_in_offset_set(tmp_path):
+    v = check_records(_ablation_targets(_run(tmp_path), [1000, 2005], range(2000, 2400)))
+    assert v == ["separation (targets): results/ablation/targets_release.parquet shares 1 target(s) with "
+                 "targets_offset.parquet (first: 2005); docs/design.md 3: training, selection, evaluation, offset "
+                 "and release targets are disjoint (separate seeds)"]
+
+
+def test_records_release_targets_read_by_the_offset_fit(tmp_path):
+    v = check_records(_ablation_targets(_run(tmp_path), range(1000, 1100), range(2000, 2400), leak=True))
+    assert v == ["separation (records): results/ablation/offsets.json (rule ablation_offsets) read "
+                 "results/ablation/targets_release.parquet; docs/design.md 3: "
+                 + POLICY["results/ablation/targets_release.parquet"].rule]
+
+
+def test_records_offset_target_in_evaluation_set(tmp_path):
+    v = check_records(_ablation_targets(_run(tmp_path), [1000, 250], range(2000, 2400)))
+    assert len(v) == 1 and "results/policy/targets_evaluation.parquet shares 1 target(s) with targets_offset" in v[0]
 
 
 def test_dag_delay_sweep_recording_read_directly(wf):

@@ -264,23 +264,24 @@ def _window_violations(root: Path, groups: dict) -> tuple[list[str], int]:
 
 def _target_violations(root: Path) -> tuple[list[str], int]:
     sets = {}
-    for name in P.TARGET_SETS:
-        p = root / f"results/policy/targets_{name}.parquet"
+    for rel in P.TARGET_FILES:
+        p = root / rel
         if p.exists():
             df = read_parquet(p)
             if "target_id" in df:
-                sets[name] = {str(x) for x in df["target_id"]}
+                sets[rel] = {str(x) for x in df["target_id"]}
             else:  # positions, rounded below any meaningful precision (1 nm)
-                sets[name] = {tuple(r) for r in df[["x", "y", "z"]].round(9).itertuples(index=False)}
+                sets[rel] = {tuple(r) for r in df[["x", "y", "z"]].round(9).itertuples(index=False)}
     out = []
     names = sorted(sets)
     for i, a in enumerate(names):
         for b in names[i + 1:]:
             common = sets[a] & sets[b]
             if common:
-                out.append(f"separation (targets): results/policy/targets_{b}.parquet shares {len(common)} "
-                           f"target(s) with targets_{a}.parquet (first: {sorted(common)[0]}); "
-                           f"{RULE}: training, selection and evaluation targets are disjoint (separate seeds)")
+                out.append(f"separation (targets): {b} shares {len(common)} target(s) with "
+                           f"{Path(a).name} (first: {sorted(common)[0]}); "
+                           f"{RULE}: training, selection, evaluation, offset and release targets are disjoint "
+                           "(separate seeds)")
     return out, len(sets)
 
 
