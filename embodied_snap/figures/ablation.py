@@ -25,7 +25,7 @@ def _p(p: float) -> str:
 def plot_ablation(s: dict, pdf: str, png: str) -> None:
     style.setup()
     fig, axes = plt.subplots(1, 3, figsize=(style.TEXT_WIDTH_IN, 2.3))
-    fig.subplots_adjust(left=0.07, right=0.99, bottom=0.25, top=0.9, wspace=0.38)
+    fig.subplots_adjust(left=0.1, right=0.99, bottom=0.25, top=0.9, wspace=0.42)
     R = s["rules"]
 
     # (a) timing reward per rule; the references in grey
