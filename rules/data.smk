@@ -7,7 +7,7 @@ rule validate_shard:
     input:
         raw=shard_raw,
         index=ancient(raw_index()),
-        code=code("validate", "rawformat"),
+        code=code("validate", "rawschema", "rawformat"),
     output:
         "results/raw/shards/{shard}.json",
     log:
@@ -18,6 +18,7 @@ rule validate_shard:
         "../envs/esnap.yaml"
     params:
         groups=lambda wc: SHARDS[wc.shard],
+        gate=asdict(LIMITS),
     script:
         "../workflow_scripts/validate_shard.py"
 
@@ -27,13 +28,15 @@ rule validate_index:
     input:
         index=raw_index(),
         shards=ancient(expand("results/raw/shards/{shard}.json", shard=SHARDS)),
-        code=code("validate", "rawformat"),
+        code=code("validate", "rawschema", "rawformat"),
     output:
         "results/raw/index_check.json",
     log:
         "logs/validate_index.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        gate=asdict(LIMITS),
     script:
         "../workflow_scripts/validate_index.py"
 
@@ -49,6 +52,8 @@ rule raw_manifest:
         "logs/raw_manifest.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        excluded=EXCLUDED,
     script:
         "../workflow_scripts/raw_manifest.py"
 
@@ -58,7 +63,7 @@ rule resample_shard:
     input:
         raw=shard_raw,
         valid="results/raw/shards/{shard}.json",
-        code=code("resample", "quat", "validate", "rawformat"),
+        code=code("resample", "quat", "rawschema", "rawformat"),
     output:
         "results/data/50hz/{shard}.parquet",
     log:
@@ -76,9 +81,29 @@ rule resample_shard:
         "../workflow_scripts/resample_shard.py"
 
 
+rule validate_sealed:
+    """The sealed test set, recorded once when first split (ids, categories, sha256 per file) beside
+    the recordings, so deleting results/ keeps it; every later plan is checked against it."""
+    input:
+        raw=ancient_raw_of(role="sealed"),
+        code=code("sealed", "rawformat"),
+    output:
+        f"{RAW}/{sealed.RECORD}",
+    log:
+        "logs/validate_sealed.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        plan=select(role="sealed")[["group_id", "evidence_set", "category", "role"]].to_dict("records"),
+    script:
+        "../workflow_scripts/validate_sealed.py"
+
+
 rule split:
     """440/78/20 by acquisition group, seeded; depends on the group list alone."""
     input:
+        sealed=ancient(f"{RAW}/{sealed.RECORD}"),
         code=code("plan"),
     output:
         "results/splits/split.csv",
