@@ -165,7 +165,7 @@ def main(argv: list[str] | None = None) -> int:
     au.add_argument("--json", action="store_true")
     au.set_defaults(fn=cmd_audit)
 
-    cs = sub.add_parser("check-separation", help="prove the evidence-set separation (DESIGN section 3)")
+    cs = sub.add_parser("check-separation", help="prove the evidence-set separation (docs/design.md section 3)")
     cs.add_argument("--root", default=".")
     cs.add_argument("--no-static", action="store_true", help="skip the Snakemake DAG check")
     cs.add_argument("--no-records", action="store_true", help="skip the provenance-record check")

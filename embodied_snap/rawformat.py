@@ -1,4 +1,4 @@
-"""The rig recording format, version 1 (DESIGN.md section 2): the one place that names it.
+"""The rig recording format, version 1 (docs/design.md section 2): the one place that names it.
 
 Lab frame in metres, Y up. Servo positions in Dynamixel ticks (XM430-W350-R, 4096 ticks/rev).
 Every writer (simulated rig, deployment recorder) and every reader (validation, resampling)
