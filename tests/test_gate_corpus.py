@@ -9,6 +9,7 @@ passes both. The raw tree is restored after each kind. One smoke run serves the 
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import shutil
 import subprocess
@@ -112,16 +113,38 @@ def test_kind(wf, raw, kind, capsys, monkeypatch):
     assert digest(wf / "results") == before
 
 
+def test_reseal_is_explicit(wf, raw, capsys, monkeypatch):
+    """A deliberate change of the sealed set: refused until `esnap seal` records the new one."""
+    CORPUS["sealed group relabelled free_space"][0](raw)
+    assert esnap_validate(wf, capsys, monkeypatch)[0] == 1
+    from embodied_snap.cli import main
+
+    assert main(["seal", "raw_data", "--budget", "smoke", "--source", "rig"]) == 0
+    out = capsys.readouterr().out
+    assert "sealed set: 1 groups: dyn_0008; was: dyn_0007, dyn_0008; recorded in raw_data/sealed.json" in out
+    assert esnap_validate(wf, capsys, monkeypatch)[0] == 0
+    r = snakemake(wf, "-n", "all", *RIG)
+    assert r.returncode == 0 and not error_lines(r.stdout + r.stderr), r.stderr[-3000:]
+
+
 def test_exclusion_is_the_users_decision(wf, raw, capsys, monkeypatch):
-    """A rejected group left out explicitly: both accept, and the DAG shows it gone."""
-    breaks, _ = CORPUS["servo dropout 0.5 s (dynamics)"]
-    breaks(raw)
+    """Last (it rebuilds): a rejected group left out explicitly. Both accept it, the DAG no longer
+    reads it, and the audit of the attachment fit names it as excluded, with the reason."""
+    CORPUS["target never tracked"][0](raw)
     from embodied_snap.cli import main
 
     monkeypatch.chdir(wf)
-    assert main(["validate", "raw_data", "--budget", "smoke", "--exclude", "dyn_0002"]) == 0
-    assert "excluded: dyn_0002" in capsys.readouterr().out
-    r = snakemake(wf, "-n", "-p", "all", "--config", "budget=smoke",
-                  "raw_data={source: rig, dir: raw_data, exclude: {dyn_0002: servo log gap}}")
+    assert main(["validate", "raw_data", "--budget", "smoke", "--exclude", "att_0004"]) == 0
+    assert "excluded: att_0004 (raw_data.exclude)" in capsys.readouterr().out
+    cfg = ["--config", "budget=smoke", "raw_data={source: rig, dir: raw_data, exclude: {att_0004: target never tracked}}"]
+    r = snakemake(wf, "-n", "all", *cfg)
+    assert r.returncode == 0 and "characterize_attachment" in r.stdout, r.stderr[-3000:]
+    r = snakemake(wf, "all", *cfg)
     assert r.returncode == 0, r.stderr[-3000:]
-    assert "resample_shard" in r.stdout and "groups/dyn_0002/" not in r.stdout
+    fit = json.loads((wf / "results/characterize/attachment.json").read_text())
+    assert fit["n"] == 7
+    r = run([str(BIN / "esnap"), "audit", "results/characterize/attachment.json"], wf)
+    assert "excluded: att_0004, target never tracked" in r.stdout
+    rep = json.loads(run([str(BIN / "esnap"), "audit", "results/characterize/attachment.json", "--json"], wf).stdout)
+    assert "att_0004" not in rep["evidence_sets"]["attachment"]["fed"] and not rep["stale"]
+    assert rep["evidence_sets"]["attachment"]["n_fed"] == 7
