@@ -35,10 +35,10 @@ def cmd_twin(a) -> int:
     from .twin.truth import truth
 
     cfg = _config(a.config, a.budget)
-    plan = load_plan(cfg)
+    raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
+    plan = load_plan(cfg, raw)
     if a.evidence_set:
         plan = plan[plan.evidence_set.isin(a.evidence_set)]
-    raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
     if a.action == "phenomena":
         from .twin.phenomena import phenomena
 
