@@ -32,8 +32,12 @@ def current(raw_dir, plan: pd.DataFrame) -> dict:
     out = {}
     for r in plan[plan.role == "sealed"].sort_values("group_id").itertuples():
         d = group_dir(raw_dir, r.group_id)
-        out[r.group_id] = dict(evidence_set=r.evidence_set, category=r.category, role=r.role,
-                               sha256={f: _sha256(d / f) for f in GROUP_FILES if (d / f).exists()})
+        out[r.group_id] = dict(
+            evidence_set=r.evidence_set,
+            category=r.category,
+            role=r.role,
+            sha256={f: _sha256(d / f) for f in GROUP_FILES if (d / f).exists()},
+        )
     return out
 
 
@@ -56,15 +60,21 @@ def check(raw_dir, plan: pd.DataFrame) -> None:
             raise RecordingError(path, gid, "sealed group is no longer in the plan", RULE)
         now = rows.loc[gid]
         if (now.category, now.role) != (was["category"], was["role"]):
-            raise RecordingError(path, gid, f"sealed group is now {now.category} ({now.role}), was "
-                                 f"{was['category']} ({was['role']})", RULE)
+            raise RecordingError(
+                path,
+                gid,
+                f"sealed group is now {now.category} ({now.role}), was " f"{was['category']} ({was['role']})",
+                RULE,
+            )
     now = current(raw_dir, plan)
     for gid, cur in now.items():
         if gid not in rec:
             raise RecordingError(path, gid, f"{cur['category']} group joined the sealed set", RULE)
         for f, h in rec[gid]["sha256"].items():
             if cur["sha256"].get(f) != h:
-                raise RecordingError(group_dir(raw_dir, gid) / f, gid, "recording of a sealed group changed", RULE)
+                raise RecordingError(
+                    group_dir(raw_dir, gid) / f, gid, "recording of a sealed group changed", RULE
+                )
 
 
 def seal(raw_dir, plan: pd.DataFrame, how: str) -> dict:

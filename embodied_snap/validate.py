@@ -19,7 +19,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .rawformat import FORMAT_VERSION, GROUP_FILES, RecordingError, group_dir, group_paths
+from .rawformat import (
+    FORMAT_VERSION,
+    GROUP_FILES,
+    RecordingError,
+    group_dir,
+    group_paths,
+)
 from .rawschema import (
     COVER_TOL_S,
     GROUP_ID_PATTERN,
@@ -34,8 +40,16 @@ from .rawschema import (
     run_schema,
 )
 
-__all__ = ["Limits", "RecordingError", "TRACKED_BODIES", "read_index", "check_folders",
-           "validate_group", "validate_index", "validate_shard"]
+__all__ = [
+    "Limits",
+    "RecordingError",
+    "TRACKED_BODIES",
+    "read_index",
+    "check_folders",
+    "validate_group",
+    "validate_index",
+    "validate_shard",
+]
 
 _PROGRAM = ["kind", "bearing", "tau", "rho1", "rho2", "rho3"]
 
@@ -48,26 +62,35 @@ class Limits:
     hz: float = 50.0  # resample.hz: dropouts count on the span of the grid resampling fills
     max_servo_gap_s: float = 0.05
     max_speed_mps: dict = field(
-        default_factory=lambda: {"base": 3.0, "s1": 6.0, "s2": 8.0, "tip": 10.0, "target": 5.0})
+        default_factory=lambda: {"base": 3.0, "s1": 6.0, "s2": 8.0, "tip": 10.0, "target": 5.0}
+    )
     min_target_valid_fraction: float = 0.5
     target_groups: tuple = ("attachment", "delay_sweep", "dynamics/target", "dynamics/sealed")
-    labels: dict = field(default_factory=lambda: {
-        "servo_calibration": ["snap_speed_event", "t_up", "t_down"],
-        "attachment": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "release_mode": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "release_mode/direct": ["snap_speed_event", "t_preload", "t_release"],
-        "delay_sweep": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "dynamics": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "dynamics/target": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "dynamics/sealed": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "held_base": ["base_event_t", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-        "deployment": [],
-    })
-    program: dict = field(default_factory=lambda: {
-        "servo_calibration": ["kind", "bearing", "section", "amplitude"],
-        "attachment": _PROGRAM, "release_mode": _PROGRAM, "delay_sweep": _PROGRAM,
-        "dynamics": _PROGRAM, "held_base": _PROGRAM, "deployment": [],
-    })
+    labels: dict = field(
+        default_factory=lambda: {
+            "servo_calibration": ["snap_speed_event", "t_up", "t_down"],
+            "attachment": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "release_mode": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "release_mode/direct": ["snap_speed_event", "t_preload", "t_release"],
+            "delay_sweep": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "dynamics": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "dynamics/target": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "dynamics/sealed": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "held_base": ["base_event_t", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "deployment": [],
+        }
+    )
+    program: dict = field(
+        default_factory=lambda: {
+            "servo_calibration": ["kind", "bearing", "section", "amplitude"],
+            "attachment": _PROGRAM,
+            "release_mode": _PROGRAM,
+            "delay_sweep": _PROGRAM,
+            "dynamics": _PROGRAM,
+            "held_base": _PROGRAM,
+            "deployment": [],
+        }
+    )
     group_id_pattern: str = GROUP_ID_PATTERN
 
     @classmethod
@@ -97,28 +120,50 @@ class Limits:
 def _check_meta(meta: dict, path, gid: str, lim: Limits, t_span) -> None:
     v = meta.get("format_version", FORMAT_VERSION)  # recordings that predate the key are version 1
     if type(v) is not int or v != FORMAT_VERSION:
-        raise RecordingError(path, gid, f"format_version {v!r}; this pipeline reads {FORMAT_VERSION}",
-                             f"format version {FORMAT_VERSION}")
+        raise RecordingError(
+            path,
+            gid,
+            f"format_version {v!r}; this pipeline reads {FORMAT_VERSION}",
+            f"format version {FORMAT_VERSION}",
+        )
     es, cat = meta["evidence_set"], meta["category"]
     for key, table in (("program", lim.program), ("labels", lim.labels)):
         need = lim.of(table, es, cat)
         if need is None:
-            raise RecordingError(path, gid, f"no gate.{key} entry for {es}", f"gate.{key} names every evidence set")
+            raise RecordingError(
+                path, gid, f"no gate.{key} entry for {es}", f"gate.{key} names every evidence set"
+            )
         got = meta.get(key)
         if not isinstance(got, dict):
-            raise RecordingError(path, gid, f"'{key}' missing or not an object", f"{key} complete per evidence set")
+            raise RecordingError(
+                path, gid, f"'{key}' missing or not an object", f"{key} complete per evidence set"
+            )
         for k in need:
             if got.get(k) is None:
-                raise RecordingError(path, gid, f"{key} has no '{k}' ({es}/{cat} needs {', '.join(need)})",
-                                     f"{key} complete per evidence set")
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"{key} has no '{k}' ({es}/{cat} needs {', '.join(need)})",
+                    f"{key} complete per evidence set",
+                )
     for k, val in meta["labels"].items():
         # Times are when things happened in this recording: numbers inside its time span.
         if k.startswith("t_") and val is not None:
-            if isinstance(val, bool) or not isinstance(val, (int, float)) or not t_span[0] <= val <= t_span[1]:
-                raise RecordingError(path, gid, f"label {k}={val!r} is not a time in {t_span[0]:.3f}..{t_span[1]:.3f} s",
-                                     "label times inside the recording")
+            if (
+                isinstance(val, bool)
+                or not isinstance(val, (int, float))
+                or not t_span[0] <= val <= t_span[1]
+            ):
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"label {k}={val!r} is not a time in {t_span[0]:.3f}..{t_span[1]:.3f} s",
+                    "label times inside the recording",
+                )
         elif k in ("attached", "retrieved", "snap_speed_event") and not isinstance(val, bool):
-            raise RecordingError(path, gid, f"label {k}={val!r} is not true/false", "outcome labels are booleans")
+            raise RecordingError(
+                path, gid, f"label {k}={val!r} is not true/false", "outcome labels are booleans"
+            )
 
 
 def _longest(t: np.ndarray, ok: np.ndarray, t0: float, t1: float):
@@ -139,24 +184,38 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
     gap = float(np.diff(t).max())
     if gap > lim.max_mocap_gap_s + 1e-9:  # rows missing altogether: every body lost at once
         k = int(np.argmax(np.diff(t)))
-        raise RecordingError(path, gid, f"no sample for {gap:.3f} s from t={t[k]:.3f} to t={t[k + 1]:.3f} s",
-                             f"mocap hole <= {lim.max_mocap_gap_s:g} s")
+        raise RecordingError(
+            path,
+            gid,
+            f"no sample for {gap:.3f} s from t={t[k]:.3f} to t={t[k + 1]:.3f} s",
+            f"mocap hole <= {lim.max_mocap_gap_s:g} s",
+        )
     bodies = TRACKED_BODIES + (("target",) if has_target else ())
     for b in bodies:
         ok = mocap[f"{b}_valid"].to_numpy()
         if b == "target":
             frac = float(ok.mean())
             if frac < lim.min_target_valid_fraction:
-                raise RecordingError(path, gid, f"target tracked in {frac:.0%} of samples",
-                                     f"target tracked >= {lim.min_target_valid_fraction:.0%}")
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"target tracked in {frac:.0%} of samples",
+                    f"target tracked >= {lim.min_target_valid_fraction:.0%}",
+                )
         elif not ok.any():
-            raise RecordingError(path, gid, f"{b} never tracked", f"mocap dropout <= {lim.max_mocap_gap_s:g} s")
+            raise RecordingError(
+                path, gid, f"{b} never tracked", f"mocap dropout <= {lim.max_mocap_gap_s:g} s"
+            )
         else:
             # Exactly resampling's bridging rule: gaps on the grid's span, its edges included.
             n, a, e = _longest(np.clip(t, *span), ok, *span)
             if n > lim.max_mocap_gap_s + 1e-9:
-                raise RecordingError(path, gid, f"{b} not tracked for {n:.3f} s from t={a:.3f} to t={e:.3f} s",
-                                     f"mocap dropout <= {lim.max_mocap_gap_s:g} s")
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"{b} not tracked for {n:.3f} s from t={a:.3f} to t={e:.3f} s",
+                    f"mocap dropout <= {lim.max_mocap_gap_s:g} s",
+                )
         vmax = lim.max_speed_mps.get(b)
         if vmax is None or ok.sum() < 2:
             continue
@@ -166,27 +225,42 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         v = d / np.diff(tv)
         k = int(np.argmax(v))
         if v[k] > vmax:
-            raise RecordingError(path, gid, f"{b} moves {d[k]:.3f} m in {tv[k + 1] - tv[k]:.4f} s ({v[k]:.1f} m/s) "
-                                 f"at t={tv[k]:.3f} s", f"{b} speed <= {vmax:g} m/s")
+            raise RecordingError(
+                path,
+                gid,
+                f"{b} moves {d[k]:.3f} m in {tv[k + 1] - tv[k]:.4f} s ({v[k]:.1f} m/s) "
+                f"at t={tv[k]:.3f} s",
+                f"{b} speed <= {vmax:g} m/s",
+            )
 
 
 def _check_servo(servo: pd.DataFrame, mocap: pd.DataFrame, path, gid: str, lim: Limits) -> None:
     # Every 50 Hz state needs servo positions, so the servo log must span the mocap, densely.
     tm, ts = mocap["t"].to_numpy(), servo["t"].to_numpy()
     if ts[0] > tm[0] + COVER_TOL_S or ts[-1] < tm[-1] - COVER_TOL_S:
-        raise RecordingError(path, gid, f"servo log spans {ts[0]:.3f}..{ts[-1]:.3f} s, mocap {tm[0]:.3f}..{tm[-1]:.3f} s",
-                             "servo log covers mocap")
+        raise RecordingError(
+            path,
+            gid,
+            f"servo log spans {ts[0]:.3f}..{ts[-1]:.3f} s, mocap {tm[0]:.3f}..{tm[-1]:.3f} s",
+            "servo log covers mocap",
+        )
     dt = np.diff(ts)
     k = int(np.argmax(dt))
     if dt[k] > lim.max_servo_gap_s + 1e-9:
-        raise RecordingError(path, gid, f"no sync-read for {dt[k]:.3f} s from t={ts[k]:.3f} to t={ts[k + 1]:.3f} s",
-                             f"servo log gap <= {lim.max_servo_gap_s:g} s")
+        raise RecordingError(
+            path,
+            gid,
+            f"no sync-read for {dt[k]:.3f} s from t={ts[k]:.3f} to t={ts[k + 1]:.3f} s",
+            f"servo log gap <= {lim.max_servo_gap_s:g} s",
+        )
 
 
 # --- public API ------------------------------------------------------------------------------
 
 
-def validate_group(raw_dir, group_id: str, index_row: dict | None = None, limits: Limits | None = None) -> dict:
+def validate_group(
+    raw_dir, group_id: str, index_row: dict | None = None, limits: Limits | None = None
+) -> dict:
     """Every rule for one group; return its raw-manifest entry (sha256 per file)."""
     lim = limits or Limits()
     paths = group_paths(raw_dir, group_id)  # ids are names: the folder stays inside raw_dir
@@ -198,16 +272,30 @@ def validate_group(raw_dir, group_id: str, index_row: dict | None = None, limits
     tm = mocap["t"].to_numpy()
     _check_meta(meta, paths["meta"], group_id, lim, (tm[0], tm[-1]))
     if index_row is not None:
-        for key, n, name in (("n_mocap", len(mocap), "mocap.parquet"), ("n_servo", len(servo), "servo.parquet")):
+        for key, n, name in (
+            ("n_mocap", len(mocap), "mocap.parquet"),
+            ("n_servo", len(servo), "servo.parquet"),
+        ):
             if key in index_row and int(index_row[key]) != n:
-                raise RecordingError(Path(raw_dir) / "index.csv", group_id, f"{key} {index_row[key]} but {name} has {n} rows",
-                                     f"{key} matches {name}")
+                raise RecordingError(
+                    Path(raw_dir) / "index.csv",
+                    group_id,
+                    f"{key} {index_row[key]} but {name} has {n} rows",
+                    f"{key} matches {name}",
+                )
     es, cat = meta["evidence_set"], meta["category"]
     has_target = es in lim.target_groups or f"{es}/{cat}" in lim.target_groups
     if has_target and not isinstance(meta.get("target"), dict):
-        raise RecordingError(paths["meta"], group_id, f"no 'target' object in a {es}/{cat} group", "target trials describe the target")
+        raise RecordingError(
+            paths["meta"],
+            group_id,
+            f"no 'target' object in a {es}/{cat} group",
+            "target trials describe the target",
+        )
     _check_servo(servo, mocap, paths["servo"], group_id, lim)
-    _check_motion(mocap, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz))
+    _check_motion(
+        mocap, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
+    )
     valid = mocap[[f"{b}_valid" for b in TRACKED_BODIES]].all(axis=1)
     return {
         "group_id": group_id,
@@ -239,8 +327,12 @@ def read_index(raw_dir, pattern: str = GROUP_ID_PATTERN) -> pd.DataFrame:
     header, body = rows[0], rows[1:]
     if any(len(r) != len(header) for r in body):
         n = next(i for i, r in enumerate(body) if len(r) != len(header))
-        raise RecordingError(path, body[n][0] if body[n] else "-", f"row {n + 1} has {len(body[n])} fields, header {len(header)}",
-                             "readable csv")
+        raise RecordingError(
+            path,
+            body[n][0] if body[n] else "-",
+            f"row {n + 1} has {len(body[n])} fields, header {len(header)}",
+            "readable csv",
+        )
     raw = pd.DataFrame(body, columns=header, dtype=str)
     if raw.columns.duplicated().any():
         raise RecordingError(path, "-", f"repeated column in {header}", "index columns")
@@ -255,7 +347,9 @@ def check_folders(raw_dir, group_ids) -> None:
     if groups.is_dir():
         for p in sorted(groups.iterdir()):
             if not p.name.startswith(".") and p.is_dir() and p.name not in listed:
-                raise RecordingError(p, p.name, "folder has no row in index.csv", "every group has an index row")
+                raise RecordingError(
+                    p, p.name, "folder has no row in index.csv", "every group has an index row"
+                )
 
 
 def validate_index(raw_dir, limits: Limits | None = None) -> pd.DataFrame:
@@ -272,17 +366,23 @@ def validate_index(raw_dir, limits: Limits | None = None) -> pd.DataFrame:
         for key, p in (("n_mocap", paths["mocap"]), ("n_servo", paths["servo"])):
             n = recording_rows(p, gid)
             if n != row[key]:
-                raise RecordingError(path, gid, f"{key} {row[key]} but {p.name} has {n} rows", f"{key} matches {p.name}")
+                raise RecordingError(
+                    path, gid, f"{key} {row[key]} but {p.name} has {n} rows", f"{key} matches {p.name}"
+                )
         read_meta_checked(paths["meta"], gid, row)
     return index
 
 
-def validate_shard(raw_dir, group_ids: list[str], index: pd.DataFrame, limits: Limits | None = None) -> list[dict]:
+def validate_shard(
+    raw_dir, group_ids: list[str], index: pd.DataFrame, limits: Limits | None = None
+) -> list[dict]:
     """Manifest entries of a shard's groups, each checked against its index.csv row."""
     rows = {r["group_id"]: r for r in index.to_dict("records")}
     out = []
     for gid in group_ids:
         if gid not in rows:
-            raise RecordingError(Path(raw_dir) / "index.csv", gid, "no row in index.csv", "every group has an index row")
+            raise RecordingError(
+                Path(raw_dir) / "index.csv", gid, "no row in index.csv", "every group has an index row"
+            )
         out.append(validate_group(raw_dir, gid, rows[gid], limits))
     return out

@@ -64,7 +64,9 @@ def index_rows(raw_dir, plan, pattern: str) -> dict:
     index.csv is written) its plan row."""
     from .validate import read_index
 
-    rows = {r["group_id"]: r for r in plan[["group_id", "evidence_set", "category", "session"]].to_dict("records")}
+    rows = {
+        r["group_id"]: r for r in plan[["group_id", "evidence_set", "category", "session"]].to_dict("records")
+    }
     if (Path(raw_dir) / "index.csv").exists():
         rows.update({r["group_id"]: r for r in read_index(raw_dir, pattern).to_dict("records")})
     return rows

@@ -10,6 +10,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
+from fakerig import write_fake_raw
 
 from embodied_snap import sealed
 from embodied_snap.characterize import attachment
@@ -17,8 +18,6 @@ from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import RecordingError, group_dir, group_paths
 from embodied_snap.validate import Limits, validate_group
 from embodied_snap.verdicts import Verdicts
-
-from fakerig import write_fake_raw
 
 REPO = Path(__file__).resolve().parent.parent
 CFG = yaml.safe_load((REPO / "config.yaml").read_text())
@@ -85,8 +84,12 @@ def test_stricter_limits_reject_what_defaults_pass(raw):
 
 
 def _plan(ids_cats):
-    return pd.DataFrame([dict(group_id=g, evidence_set="dynamics", category=c,
-                              role="sealed" if c == "sealed" else "train") for g, c in ids_cats])
+    return pd.DataFrame(
+        [
+            dict(group_id=g, evidence_set="dynamics", category=c, role="sealed" if c == "sealed" else "train")
+            for g, c in ids_cats
+        ]
+    )
 
 
 def test_sealed_record_holds_until_resealed(raw):
@@ -96,13 +99,18 @@ def test_sealed_record_holds_until_resealed(raw):
     sealed.check(raw, plan)
     with pytest.raises(RecordingError, match=r"group dyn_0002: sealed group is now free_space \(train\)"):
         sealed.check(raw, _plan([("dyn_0001", "free_space"), ("dyn_0002", "free_space")]))
-    with pytest.raises(RecordingError, match=r"group dyn_0001: free_space group joined the sealed set|dyn_0001: sealed group joined"):
+    with pytest.raises(
+        RecordingError,
+        match=r"group dyn_0001: free_space group joined the sealed set|dyn_0001: sealed group joined",
+    ):
         sealed.check(raw, _plan([("dyn_0001", "sealed"), ("dyn_0002", "sealed")]))
     with pytest.raises(RecordingError, match="no longer in the plan"):
         sealed.check(raw, _plan([("dyn_0001", "free_space")]))
     p = group_paths(raw, "dyn_0002")["servo"]
     p.write_bytes(p.read_bytes() + b"\0")
-    with pytest.raises(RecordingError, match=r"servo.parquet: group dyn_0002: recording of a sealed group changed"):
+    with pytest.raises(
+        RecordingError, match=r"servo.parquet: group dyn_0002: recording of a sealed group changed"
+    ):
         sealed.check(raw, plan)
     sealed.seal(raw, plan, "esnap seal")  # the explicit re-seal
     sealed.check(raw, plan)
@@ -134,12 +142,17 @@ def test_twin_index_must_match_the_plan_and_folders_must_be_planned(tmp_path):
         load_plan(_cfg(dir=str(tmp_path)))
     os.remove(tmp_path / "index.csv")
     (tmp_path / "groups" / "stray_0001").mkdir(parents=True)
-    with pytest.raises(PlanError, match=r"groups/stray_0001: group stray_0001: .*every group has an index row"):
+    with pytest.raises(
+        PlanError, match=r"groups/stray_0001: group stray_0001: .*every group has an index row"
+    ):
         load_plan(_cfg(dir=str(tmp_path)))
 
 
 def test_attachment_fit_raises_on_an_unmeasurable_trial():
-    rows = [dict(group_id=f"att_{i:04d}", session="s01", v_peak=1.0, tilt_deg=5.0, attached=i % 2) for i in range(4)]
+    rows = [
+        dict(group_id=f"att_{i:04d}", session="s01", v_peak=1.0, tilt_deg=5.0, attached=i % 2)
+        for i in range(4)
+    ]
     rows[2]["tilt_deg"] = float("nan")
     with pytest.raises(RecordingError, match="group att_0002: .*rule: attachment trial measurable"):
         attachment.fit(rows)

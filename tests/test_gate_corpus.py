@@ -17,12 +17,21 @@ import sys
 from pathlib import Path
 
 import pytest
-
 from gate_corpus import BENIGN, CORPUS
 
 REPO = Path(__file__).resolve().parent.parent
-COPY = ["Snakefile", "config.yaml", "rules", "workflow_scripts", "schemas", "envs", "profiles",
-        "reference", "report", "embodied_snap"]
+COPY = [
+    "Snakefile",
+    "config.yaml",
+    "rules",
+    "workflow_scripts",
+    "schemas",
+    "envs",
+    "profiles",
+    "reference",
+    "report",
+    "embodied_snap",
+]
 BIN = Path(sys.executable).parent
 RIG = ["--config", "budget=smoke", "raw_data={source: rig, dir: raw_data}"]
 
@@ -39,8 +48,11 @@ def snakemake(cwd, *args):
 
 
 def digest(root: Path) -> dict[str, str]:
-    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
 
 
 def error_lines(text: str) -> list[str]:
@@ -103,7 +115,11 @@ def test_kind(wf, raw, kind, capsys, monkeypatch):
     assert rc == 1 and not out and err.count("\n") == 1, err
     line = err.strip()
     file, gid, rule = want
-    path = f"raw_data/{file}" if file in ("index.csv", "sealed.json") else f"raw_data/groups/{gid}/{file}".rstrip("/")
+    path = (
+        f"raw_data/{file}"
+        if file in ("index.csv", "sealed.json")
+        else f"raw_data/groups/{gid}/{file}".rstrip("/")
+    )
     assert line.startswith(f"error: {path}: group {gid}: ") and f"(rule: {rule}" in line, line
     # the workflow: stops while the plan is read, with the same line, and touches nothing
     r = snakemake(wf, "all", *RIG)
@@ -136,7 +152,11 @@ def test_exclusion_is_the_users_decision(wf, raw, capsys, monkeypatch):
     monkeypatch.chdir(wf)
     assert main(["validate", "raw_data", "--budget", "smoke", "--exclude", "att_0004"]) == 0
     assert "excluded: att_0004 (raw_data.exclude)" in capsys.readouterr().out
-    cfg = ["--config", "budget=smoke", "raw_data={source: rig, dir: raw_data, exclude: {att_0004: target never tracked}}"]
+    cfg = [
+        "--config",
+        "budget=smoke",
+        "raw_data={source: rig, dir: raw_data, exclude: {att_0004: target never tracked}}",
+    ]
     r = snakemake(wf, "-n", "all", *cfg)
     assert r.returncode == 0 and "characterize_attachment" in r.stdout, r.stderr[-3000:]
     r = snakemake(wf, "all", *cfg)
@@ -145,6 +165,8 @@ def test_exclusion_is_the_users_decision(wf, raw, capsys, monkeypatch):
     assert fit["n"] == 7
     r = run([str(BIN / "esnap"), "audit", "results/characterize/attachment.json"], wf)
     assert "excluded: att_0004, target never tracked" in r.stdout
-    rep = json.loads(run([str(BIN / "esnap"), "audit", "results/characterize/attachment.json", "--json"], wf).stdout)
+    rep = json.loads(
+        run([str(BIN / "esnap"), "audit", "results/characterize/attachment.json", "--json"], wf).stdout
+    )
     assert "att_0004" not in rep["evidence_sets"]["attachment"]["fed"] and not rep["stale"]
     assert rep["evidence_sets"]["attachment"]["n_fed"] == 7
