@@ -29,9 +29,9 @@ from .rawformat import (
 from .rawschema import (
     COVER_TOL_S,
     GROUP_ID_PATTERN,
-    MOCAP_SCHEMA,
-    SERVO_SCHEMA,
     TRACKED_BODIES,
+    check_mocap,
+    check_servo,
     file_entry,
     index_schema,
     read_meta_checked,
@@ -266,9 +266,9 @@ def validate_group(
     paths = group_paths(raw_dir, group_id)  # ids are names: the folder stays inside raw_dir
     meta = read_meta_checked(paths["meta"], group_id, index_row)
     mocap = read_recording(paths["mocap"], group_id)
-    run_schema(MOCAP_SCHEMA, mocap, paths["mocap"], group_id)
+    check_mocap(mocap, paths["mocap"], group_id)
     servo = read_recording(paths["servo"], group_id)
-    run_schema(SERVO_SCHEMA, servo, paths["servo"], group_id)
+    check_servo(servo, paths["servo"], group_id)
     tm = mocap["t"].to_numpy()
     _check_meta(meta, paths["meta"], group_id, lim, (tm[0], tm[-1]))
     if index_row is not None:

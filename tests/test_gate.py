@@ -156,3 +156,51 @@ def test_attachment_fit_raises_on_an_unmeasurable_trial():
     rows[2]["tilt_deg"] = float("nan")
     with pytest.raises(RecordingError, match="group att_0002: .*rule: attachment trial measurable"):
         attachment.fit(rows)
+
+
+def _edits():
+    nan = float("nan")
+    return {
+        "none": (lambda m: m, lambda s: s),
+        "nan in a valid pose": (lambda m: m.assign(tip_x=m.tip_x.where(m.index != 5, nan)), None),
+        "inf position": (lambda m: m.assign(s1_y=m.s1_y.where(m.index != 5, float("inf"))), None),
+        "6 m away": (lambda m: m.assign(base_z=m.base_z + 6), None),
+        "long quaternion": (lambda m: m.assign(tip_qw=m.tip_qw * 1.01), None),
+        "repeated t": (lambda m: m.assign(t=m.t.where(m.index != 9, m.t.shift(1))), None),
+        "t NaN": (lambda m: m.assign(t=m.t.where(m.index != 0, nan)), lambda s: s.assign(t=s.t.where(s.index != 0, nan))),
+        "t as int": (lambda m: m.assign(t=(m.t * 1000).astype("int64")), None),
+        "columns reordered": (lambda m: m[list(reversed(m.columns))], lambda s: s[list(reversed(s.columns))]),
+        "valid as int": (lambda m: m.assign(s2_valid=m.s2_valid.astype(int)), None),
+        "nullable int ticks": (None, lambda s: s.assign(goal_1=s.goal_1.astype("Int64").where(s.index != 3, pd.NA))),
+        "float ticks": (None, lambda s: s.assign(present_2=s.present_2 + 0.5)),
+        "ticks out of range": (None, lambda s: s.assign(goal_4=s.goal_4.where(s.index != 3, 2_000_000))),
+        "current NaN": (None, lambda s: s.assign(current_5=s.current_5.where(s.index != 3, nan))),
+        "current as bool": (None, lambda s: s.assign(current_6=s.current_6 > 0)),
+        "current in A x1000": (None, lambda s: s.assign(current_7=s.current_7 * 1e3)),
+    }
+
+
+@pytest.mark.parametrize("edit", list(_edits()))
+def test_fast_path_passes_only_what_pandera_passes(raw, edit):
+    """The vectorised pre-check may doubt a good frame (pandera then decides), never pass a bad one."""
+    import pandera.errors as pe
+
+    from embodied_snap import rawschema as R
+
+    fm, fs = _edits()[edit]
+    p = group_paths(raw, "dyn_0001")
+    for fn, frame, fast, schema in (
+        (fm, pd.read_parquet(p["mocap"]), R._mocap_passes, R.MOCAP_SCHEMA),
+        (fs, pd.read_parquet(p["servo"]), R._servo_passes, R.SERVO_SCHEMA),
+    ):
+        if fn is None:
+            continue
+        df = fn(frame.copy())
+        try:
+            schema.validate(df)
+            ok = True
+        except (pe.SchemaError, pe.SchemaErrors):
+            ok = False
+        assert not fast(df) or ok
+        if edit == "none":
+            assert fast(df) and ok
