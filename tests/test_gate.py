@@ -169,6 +169,7 @@ def _edits():
         "repeated t": (lambda m: m.assign(t=m.t.where(m.index != 9, m.t.shift(1))), None),
         "t NaN": (lambda m: m.assign(t=m.t.where(m.index != 0, nan)), lambda s: s.assign(t=s.t.where(s.index != 0, nan))),
         "t as int": (lambda m: m.assign(t=(m.t * 1000).astype("int64")), None),
+        "t as float32": (lambda m: m.assign(t=m.t.astype("float32")), lambda s: s.assign(t=s.t.astype("float32"))),
         "columns reordered": (lambda m: m[list(reversed(m.columns))], lambda s: s[list(reversed(s.columns))]),
         "valid as int": (lambda m: m.assign(s2_valid=m.s2_valid.astype(int)), None),
         "nullable int ticks": (None, lambda s: s.assign(goal_1=s.goal_1.astype("Int64").where(s.index != 3, pd.NA))),
