@@ -38,10 +38,10 @@ def cmd_twin(a) -> int:
     from .twin.truth import truth
 
     cfg = _config(a.config, a.budget)
-    plan = load_plan(cfg)
+    raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
+    plan = load_plan(cfg, raw)
     if a.evidence_set:
         plan = plan[plan.evidence_set.isin(a.evidence_set)]
-    raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
     if a.action == "phenomena":
         from .twin.phenomena import phenomena
 
@@ -59,17 +59,56 @@ def cmd_twin(a) -> int:
     return 0
 
 
-def cmd_validate(a) -> int:
-    from .validate import RecordingError, validate_group, validate_index
+def _tree_config(a) -> dict:
+    cfg = _config(a.config, a.budget)
+    cfg["raw_data"] = {**cfg["raw_data"], "dir": a.raw_dir or cfg["raw_data"]["dir"]}
+    if a.source:
+        cfg["raw_data"]["source"] = a.source
+    if getattr(a, "exclude", None):
+        cfg["raw_data"]["exclude"] = a.exclude
+    return cfg
 
+
+def cmd_validate(a) -> int:
+    """Exactly what the workflow checks before its DAG (verdicts.check_tree): one line on error."""
+    from .plan import PlanError
+    from .validate import RecordingError
+    from .verdicts import check_tree
+
+    cfg = _tree_config(a)
     try:
-        index = validate_index(a.raw_dir)
-        for row in index.to_dict("records"):
-            validate_group(a.raw_dir, row["group_id"], row)
-    except RecordingError as e:
+        plan = check_tree(cfg, cfg["raw_data"]["dir"])
+    except (RecordingError, PlanError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
-    print(f"{len(index)} groups valid")
+    ex = plan.attrs["excluded"]
+    print(f"{len(plan)} groups valid" + (f"; excluded: {', '.join(f'{g} ({r})' for g, r in ex.items())}" if ex else ""))
+    return 0
+
+
+def cmd_seal(a) -> int:
+    """Re-seal: record the sealed set of the current plan, saying what it was and what it is now."""
+    import json as _json
+
+    from . import sealed
+    from .plan import PlanError, load_plan
+    from .validate import Limits, RecordingError
+    from .verdicts import Verdicts, index_rows
+
+    cfg = _tree_config(a)
+    raw = cfg["raw_data"]["dir"]
+    try:
+        plan = load_plan(cfg, raw)
+        lim = Limits.from_config(cfg)
+        ids = list(plan[plan.role == "sealed"].group_id)
+        Verdicts(raw, lim, index_rows(raw, plan, lim.group_id_pattern), None).check(ids)
+    except (RecordingError, PlanError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    path = sealed.record_path(raw)
+    was = sorted(_json.loads(path.read_text())["groups"]) if path.exists() else []
+    sealed.seal(raw, plan, "esnap seal")
+    print(f"sealed set: {len(ids)} groups: {', '.join(ids)}; was: {', '.join(was) or 'none'}; recorded in {path}")
     return 0
 
 
@@ -131,9 +170,18 @@ def main(argv: list[str] | None = None) -> int:
     t.add_argument("--jobs", type=int, default=2, help="processes to simulate in")
     t.set_defaults(fn=cmd_twin)
 
-    v = sub.add_parser("validate", help="check a recording tree against the rig format")
-    v.add_argument("raw_dir", nargs="?", default="raw_data")
-    v.set_defaults(fn=cmd_validate)
+    for name, fn, hlp in (
+        ("validate", cmd_validate, "check a recording tree through the gate, as the workflow does before its DAG"),
+        ("seal", cmd_seal, "re-seal: record the current sealed test set (after a deliberate change to it)"),
+    ):
+        v = sub.add_parser(name, help=hlp)
+        v.add_argument("raw_dir", nargs="?", help="recording tree (default: config raw_data.dir)")
+        v.add_argument("--config", default="config.yaml", help="limits (gate:, raw_data:) and budget")
+        v.add_argument("--budget", choices=["paper", "quick", "smoke"], help="budget of the run (split sizes)")
+        v.add_argument("--source", choices=["rig", "twin"], default="rig" if name == "validate" else None,
+                       help="plan from index.csv (rig) or from the budget (twin); seal: default from config")
+        v.add_argument("--exclude", action="append", help="leave this group out, as raw_data.exclude (repeatable)")
+        v.set_defaults(fn=fn)
 
     au = sub.add_parser("audit", help="which recordings fed RESULT, which never did, and whether it is stale")
     au.add_argument("result")

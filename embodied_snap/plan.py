@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .rawformat import CATEGORIES, EVIDENCE_SETS, PREFIX
+from .rawformat import CATEGORIES, EVIDENCE_SETS, PREFIX, RecordingError
 
 
 class PlanError(ValueError):
@@ -44,25 +44,15 @@ def twin_plan(counts: dict, n_sessions: int) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["group_id", "evidence_set", "category", "session"])
 
 
-def rig_plan(index_csv: str | Path) -> pd.DataFrame:
-    """Group table of a real rig's recordings, with the checks that must hold to build a DAG."""
-    index_csv = Path(index_csv)
-    if not index_csv.exists():
-        raise PlanError(f"{index_csv}: missing (rule: raw_data/index.csv lists every group)")
-    df = pd.read_csv(index_csv, dtype=str)
-    for col in ("group_id", "evidence_set", "category", "session"):
-        if col not in df:
-            raise PlanError(f"{index_csv}: column '{col}' missing (rule: index columns)")
-    dup = df.group_id[df.group_id.duplicated()]
-    if len(dup):
-        raise PlanError(f"{index_csv}: group {dup.iloc[0]}: duplicate group_id (rule: unique group id)")
-    bad = df[~df.evidence_set.isin(EVIDENCE_SETS)]
-    if len(bad):
-        r = bad.iloc[0]
-        raise PlanError(
-            f"{index_csv}: group {r.group_id}: unknown evidence set '{r.evidence_set}' (rule: evidence set)"
-        )
-    return df[["group_id", "evidence_set", "category", "session"]].reset_index(drop=True)
+def rig_plan(index_csv: str | Path, pattern: str | None = None) -> pd.DataFrame:
+    """Group table of a real rig's recordings: index.csv, with every check that must hold to
+    build a DAG (readable, its columns, ids matching `pattern`, unique, known sets/categories)."""
+    from .validate import GROUP_ID_PATTERN, read_index
+
+    try:
+        return read_index(Path(index_csv).parent, pattern or GROUP_ID_PATTERN)
+    except RecordingError as e:
+        raise PlanError(str(e)) from None
 
 
 def assign_roles(groups: pd.DataFrame, n_validation: int, seed: int) -> pd.DataFrame:
@@ -100,12 +90,63 @@ def shard(groups: pd.DataFrame, size: int) -> pd.DataFrame:
     return g.sort_values(["shard", "group_id"]).reset_index(drop=True)
 
 
+def _twin_index_agrees(plan: pd.DataFrame, raw_dir: Path, pattern: str) -> None:
+    """With the simulated rig the plan comes from the budget; an index.csv already written must
+    list exactly those groups (a relabelled or extra row is not the rig's)."""
+    if not (raw_dir / "index.csv").exists():
+        return
+    idx = rig_plan(raw_dir / "index.csv", pattern).set_index("group_id")
+    path = raw_dir / "index.csv"
+    for row in plan.itertuples():
+        if row.group_id not in idx.index:
+            raise PlanError(f"{path}: group {row.group_id}: no row (rule: index.csv matches the simulated rig's plan)")
+        got = idx.loc[row.group_id]
+        for k in ("evidence_set", "category", "session"):
+            if got[k] != getattr(row, k):
+                raise PlanError(f"{path}: group {row.group_id}: {k} '{got[k]}' but the plan says "
+                                f"'{getattr(row, k)}' (rule: index.csv matches the simulated rig's plan)")
+    extra = sorted(set(idx.index) - set(plan.group_id))
+    if extra:
+        raise PlanError(f"{path}: group {extra[0]}: not in the simulated rig's plan "
+                        f"(rule: index.csv matches the simulated rig's plan)")
+
+
+def exclusions(config: dict) -> dict[str, str]:
+    """raw_data.exclude: group ids (a list) or id -> reason (a mapping), the user's decision."""
+    ex = config["raw_data"].get("exclude") or {}
+    if isinstance(ex, (list, tuple)):
+        ex = {g: "raw_data.exclude" for g in ex}
+    return {str(g): str(r) for g, r in ex.items()}
+
+
 def load_plan(config: dict, raw_dir: str | Path | None = None) -> pd.DataFrame:
-    """The group table of this run: group_id, evidence_set, category, session, role, shard."""
+    """The group table of this run: group_id, evidence_set, category, session, role, shard.
+
+    Checked before any DAG exists: index.csv (rig) or its agreement with the budget (twin),
+    every folder under groups/ is a listed group, and excluded ids exist. Excluded groups keep
+    their role and shard name (so no other group moves) and are then left out; the table's
+    `attrs["excluded"]` says which, and why.
+    """
+    from .validate import Limits, check_folders
+
     b = config["budgets"][config["budget"]]
+    raw = Path(raw_dir or config["raw_data"]["dir"])
+    pattern = Limits.from_config(config).group_id_pattern
     if config["raw_data"]["source"] == "twin":
         groups = twin_plan(b["groups"], config["sessions"])
+        _twin_index_agrees(groups, raw, pattern)
     else:
-        groups = rig_plan(Path(raw_dir or config["raw_data"]["dir"]) / "index.csv")
+        groups = rig_plan(raw / "index.csv", pattern)[["group_id", "evidence_set", "category", "session"]]
+    try:
+        check_folders(raw, groups.group_id)
+    except RecordingError as e:
+        raise PlanError(str(e)) from None
+    excluded = exclusions(config)
+    unknown = sorted(set(excluded) - set(groups.group_id))
+    if unknown:
+        raise PlanError(f"config raw_data.exclude: group {unknown[0]}: not a group of this run (rule: exclude names groups)")
     groups = assign_roles(groups, b["split"]["validation"], config["seed"])
-    return shard(groups, b["shard_size"])
+    plan = shard(groups, b["shard_size"])
+    plan = plan[~plan.group_id.isin(list(excluded))].reset_index(drop=True)
+    plan.attrs["excluded"] = excluded
+    return plan

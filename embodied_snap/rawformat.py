@@ -93,8 +93,27 @@ def tendon_azimuth_deg(tendon: int) -> float:
     return 120.0 * (tendon - 1)
 
 
+class RecordingError(ValueError):
+    """A raw recording breaks the format: one line, `<file>: group <gid>: <what> (rule: <rule>)`."""
+
+    def __init__(self, path, group_id, what, rule):
+        self.path, self.group_id, self.what, self.rule = str(path), str(group_id), what, rule
+        msg = f"{path}: group {group_id}: {what} (rule: {rule})"
+        super().__init__(" ".join(msg.split()))  # one line whatever the pieces hold
+
+    def __reduce__(self):  # picklable across worker processes
+        return (type(self), (self.path, self.group_id, self.what, self.rule))
+
+
 def group_dir(raw_dir: str | Path, group_id: str) -> Path:
-    return Path(raw_dir) / "groups" / group_id
+    """A group's folder. Ids are names, not paths: whatever an id holds (`..`, `/etc`, a
+    symlinked folder), the folder must resolve inside `<raw_dir>/groups`, or nothing is read."""
+    root = Path(raw_dir) / "groups"
+    d = root / str(group_id)
+    real = d.resolve()
+    if real.parent != root.resolve() or real.name != str(group_id):
+        raise RecordingError(d, group_id, f"resolves to {real}, outside {root}", "group folder inside the raw directory")
+    return d
 
 
 def group_paths(raw_dir: str | Path, group_id: str) -> dict[str, Path]:

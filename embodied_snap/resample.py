@@ -17,7 +17,8 @@ import pandas as pd
 from .io import read_table
 from .quat import to_matrix
 from .rawformat import SERVO_IDS, TIP_AXIS_LOCAL, group_paths
-from .validate import TRACKED_BODIES, RecordingError
+from .rawformat import RecordingError
+from .rawschema import TRACKED_BODIES
 
 STATE_COLUMNS = (
     [f"{b}_{c}" for b in ("s1", "s2", "tip") for c in "xyz"]
@@ -53,6 +54,8 @@ def _track(mocap: dict, body: str, tg: np.ndarray, max_gap_s: float, path, gid: 
     # grid bracket it as well as samples on it, hence the clip.
     pts = np.concatenate([[tg[0]], np.clip(tv, tg[0], tg[-1]), [tg[-1]]])
     gaps = np.diff(pts)
+    # The gate (validate.py) has already rejected any dropout longer than max_gap_s; meeting one
+    # here means the recording bypassed or changed after the gate: stop, never drop the group.
     if len(tv) < 2 or gaps.max() > max_gap_s + 1e-9:
         k = int(np.argmax(gaps)) if len(tv) >= 2 else 0
         a, b = (pts[k], pts[k + 1]) if len(tv) >= 2 else (tg[0], tg[-1])
@@ -60,7 +63,7 @@ def _track(mocap: dict, body: str, tg: np.ndarray, max_gap_s: float, path, gid: 
             path,
             gid,
             f"{body} not tracked for {b - a:.3f} s from t={a:.3f} to t={b:.3f} s",
-            f"mocap dropout <= {max_gap_s:g} s",
+            f"recording passed the gate (mocap dropout <= {max_gap_s:g} s)",
         )
     # Bracketing valid samples and weights, shared by positions (lerp) and quaternions (nlerp;
     # at 240 Hz neighbours are so close that nlerp and slerp agree to round-off).

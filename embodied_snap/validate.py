@@ -1,335 +1,276 @@
-"""Validation of raw recordings against the rig format (docs/design.md section 2, rawformat.py).
+"""The gate: every rule a recording must satisfy, checked in one place (docs/data.md lists them
+with their config keys).
 
-Table checks are pandera schemas, one per file; what spans files (meta.json against its folder
-and index.csv, the servo log covering the mocap, row counts) is checked in plain code after them.
-The first broken rule raises a RecordingError whose message is one line naming the file, the
-group and the rule, so a workflow log shows at once which recording to fix.
+`esnap validate`, the workflow's plan (rules/common.smk, before any job reads a shard) and its
+validation jobs all call these functions, so they cannot disagree. The table rules are the
+schemas of rawschema.py; here are the rules that span files or need limits from config: time
+base, holes and dropouts in both logs, tracked-body coverage, physically impossible motion,
+labels and program per evidence set, format version. The first broken rule raises a
+RecordingError, one line naming the file, the group and the rule. Nothing downstream decides
+again whether a group is usable.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
+import csv
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pandera.pandas as pa
-import pyarrow as pa_arrow
-from pandera.errors import SchemaError, SchemaErrorReason, SchemaErrors
 
-from .io import parquet_rows, read_parquet
 from .rawformat import (
-    BODIES,
-    CATEGORIES,
-    EVIDENCE_SETS,
+    FORMAT_VERSION,
     GROUP_FILES,
-    INDEX_COLUMNS,
-    MOCAP_HZ,
-    POSE_FIELDS,
-    SERVO_HZ,
-    SERVO_IDS,
+    RecordingError,
     group_dir,
     group_paths,
-    mocap_columns,
-    servo_columns,
+)
+from .rawschema import (
+    COVER_TOL_S,
+    GROUP_ID_PATTERN,
+    TRACKED_BODIES,
+    check_mocap,
+    check_servo,
+    file_entry,
+    index_schema,
+    read_meta_checked,
+    read_recording,
+    recording_rows,
+    run_schema,
 )
 
-# Lab-frame coordinates of a mocap volume are a few metres at most; the same arm in millimetres
-# reads hundreds to thousands, so this bound catches a unit slip.
-MAX_ABS_POSITION_M = 5.0
-# Motion capture exports unit quaternions; float32 round-off stays far below this.
-QUAT_NORM_TOL = 1e-3
-# Mocap is hardware-clocked (tight); the servo sync-read loop is jittered (loose).
-MOCAP_RATE_TOL = 0.01
-SERVO_RATE_TOL = 0.3
-# XM430-W350-R in extended position mode: +-256 revolutions of 4096 ticks.
-TICK_LIMIT = 1_048_575
-# XM430 current limit (1193 units of 2.69 mA); a log in raw units or amperes falls outside.
-CURRENT_LIMIT_MA = 3300.0
-# The servo log may start or end this much inside the mocap span (one sync-read or a few).
-COVER_TOL_S = 0.05
-# Keys every meta.json carries whatever the evidence set (the rest depends on the program).
-META_KEYS = ("group_id", "evidence_set", "category", "session")
-# Bodies the state x_t is built from; the target is tracked but not part of x_t.
-TRACKED_BODIES = ("base", "s1", "s2", "tip")
+__all__ = [
+    "Limits",
+    "RecordingError",
+    "TRACKED_BODIES",
+    "read_index",
+    "check_folders",
+    "validate_group",
+    "validate_index",
+    "validate_shard",
+]
+
+_PROGRAM = ["kind", "bearing", "tau", "rho1", "rho2", "rho3"]
 
 
-class RecordingError(ValueError):
-    """A raw recording breaks the format: one line, `<file>: group <gid>: <what> (rule: <rule>)`."""
+@dataclass(frozen=True)
+class Limits:
+    """The gate's limits; the defaults are config.yaml's (tests/test_gate.py checks it)."""
 
-    def __init__(self, path, group_id, what, rule):
-        self.path, self.group_id, self.what, self.rule = str(path), str(group_id), what, rule
-        msg = f"{path}: group {group_id}: {what} (rule: {rule})"
-        super().__init__(" ".join(msg.split()))  # one line whatever the pieces hold
-
-    def __reduce__(self):  # picklable across worker processes
-        return (type(self), (self.path, self.group_id, self.what, self.rule))
-
-
-# --- schemas -------------------------------------------------------------------------------
-
-
-def _strictly_increasing(s: pd.Series) -> pd.Series:
-    return pd.Series(np.diff(s.to_numpy(), prepend=-np.inf) > 0, index=s.index)
-
-
-_IN_METRES = pa.Check.in_range(-MAX_ABS_POSITION_M, MAX_ABS_POSITION_M, name="positions in metres")
-_INCREASING = pa.Check(_strictly_increasing, name="t strictly increasing", error="t does not increase")
-_KNOWN_SET = pa.Check.isin(EVIDENCE_SETS, name="known evidence set", error="not a known evidence set")
-
-
-def _rate_check(hz: float, tol: float, name: str) -> pa.Check:
-    # The median step is robust to jitter and to a few lost samples.
-    return pa.Check(
-        lambda df: len(df) > 1 and abs(np.median(np.diff(df["t"].to_numpy())) * hz - 1.0) <= tol,
-        name=name,
-        error=f"median sample interval is not 1/{hz:g} s (+-{tol:.0%})",
+    max_mocap_gap_s: float = 0.1  # resample.max_gap_s: what passes is what resampling bridges
+    hz: float = 50.0  # resample.hz: dropouts count on the span of the grid resampling fills
+    max_servo_gap_s: float = 0.05
+    max_speed_mps: dict = field(
+        default_factory=lambda: {"base": 3.0, "s1": 6.0, "s2": 8.0, "tip": 10.0, "target": 5.0}
     )
-
-
-def _body_checks(b: str) -> list[pa.Check]:
-    pos = [f"{b}_{f}" for f in POSE_FIELDS[:3]]
-    quat = [f"{b}_{f}" for f in POSE_FIELDS[3:]]
-    v = f"{b}_valid"
-    return [
-        # Invalid samples may hold anything (NaN, stale values); valid ones must be complete.
-        pa.Check(
-            lambda df: ~df[v] | np.isfinite(df[pos + quat].to_numpy()).all(axis=1),
-            name=f"valid {b} samples complete",
-            error=f"{b} marked valid but its pose has NaN/inf",
-        ),
-        pa.Check(
-            lambda df: ~df[v] | (np.abs(np.linalg.norm(df[quat].to_numpy(), axis=1) - 1) <= QUAT_NORM_TOL),
-            name=f"unit {b} quaternions",
-            error=f"{b} quaternion norm differs from 1 by more than {QUAT_NORM_TOL:g}",
-        ),
-    ]
-
-
-def _mocap_schema() -> pa.DataFrameSchema:
-    cols = {"t": pa.Column("float64", _INCREASING)}
-    for b in BODIES:
-        for f in POSE_FIELDS:
-            # NaN allowed: tracking lost. Quaternions are checked as a whole (unit norm) below.
-            in_m = [_IN_METRES] if f in "xyz" else []
-            cols[f"{b}_{f}"] = pa.Column("float64", in_m, nullable=True)
-        cols[f"{b}_valid"] = pa.Column("bool")
-    checks = [_rate_check(MOCAP_HZ, MOCAP_RATE_TOL, f"mocap rate {MOCAP_HZ:g} Hz")]
-    for b in BODIES:
-        checks += _body_checks(b)
-    assert list(cols) == mocap_columns()
-    return pa.DataFrameSchema(cols, checks=checks, strict=True)
-
-
-def _servo_schema() -> pa.DataFrameSchema:
-    ticks = [
-        pa.Check(
-            pd.api.types.is_integer_dtype, name="ticks are integers", error="ticks not stored as integers"
-        ),
-        pa.Check.in_range(-TICK_LIMIT, TICK_LIMIT, name="ticks in range"),
-    ]
-    current = [
-        pa.Check(pd.api.types.is_numeric_dtype, name="current is numeric", error="current not numeric"),
-        pa.Check.in_range(-CURRENT_LIMIT_MA, CURRENT_LIMIT_MA, name="current in mA"),
-    ]
-    cols = {"t": pa.Column("float64", _INCREASING)}
-    for i in SERVO_IDS:
-        cols[f"goal_{i}"] = pa.Column(None, ticks)
-        cols[f"present_{i}"] = pa.Column(None, ticks)
-        cols[f"current_{i}"] = pa.Column(None, current)
-    assert list(cols) == servo_columns()
-    return pa.DataFrameSchema(
-        cols, checks=[_rate_check(SERVO_HZ, SERVO_RATE_TOL, f"servo rate about {SERVO_HZ:g} Hz")], strict=True
+    min_target_valid_fraction: float = 0.5
+    target_groups: tuple = ("attachment", "delay_sweep", "dynamics/target", "dynamics/sealed")
+    labels: dict = field(
+        default_factory=lambda: {
+            "servo_calibration": ["snap_speed_event", "t_up", "t_down"],
+            "attachment": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "release_mode": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "release_mode/direct": ["snap_speed_event", "t_preload", "t_release"],
+            "delay_sweep": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "dynamics": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "dynamics/target": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "dynamics/sealed": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "held_base": ["base_event_t", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
+            "deployment": [],
+        }
     )
-
-
-def _known_category(df: pd.DataFrame) -> pd.Series:
-    return pd.Series(
-        [c in CATEGORIES.get(e, ()) for e, c in zip(df.evidence_set, df.category)], index=df.index
+    program: dict = field(
+        default_factory=lambda: {
+            "servo_calibration": ["kind", "bearing", "section", "amplitude"],
+            "attachment": _PROGRAM,
+            "release_mode": _PROGRAM,
+            "delay_sweep": _PROGRAM,
+            "dynamics": _PROGRAM,
+            "held_base": _PROGRAM,
+            "deployment": [],
+        }
     )
+    group_id_pattern: str = GROUP_ID_PATTERN
+
+    @classmethod
+    def from_config(cls, config: dict) -> "Limits":
+        g = config.get("gate", {})
+        keys = ("max_servo_gap_s", "max_speed_mps", "min_target_valid_fraction", "labels", "program")
+        kw = {k: g[k] for k in keys if k in g}
+        if "target_groups" in g:
+            kw["target_groups"] = tuple(g["target_groups"])
+        r = config.get("resample", {})
+        if "max_gap_s" in r:
+            kw["max_mocap_gap_s"] = r["max_gap_s"]
+        if "hz" in r:
+            kw["hz"] = float(r["hz"])
+        if "group_id_pattern" in config.get("raw_data", {}):
+            kw["group_id_pattern"] = config["raw_data"]["group_id_pattern"]
+        return cls(**kw)
+
+    def of(self, table: dict, es: str, cat: str):
+        """A per-evidence-set entry: `<set>/<category>` overrides `<set>`."""
+        return table.get(f"{es}/{cat}", table.get(es))
 
 
-_KNOWN_CATEGORY = pa.Check(
-    _known_category, name="known category", error="category not one of its evidence set's"
-)
-_NONEMPTY = pa.Check.str_length(min_value=1, name="non-empty")
-
-# meta.json is validated as a one-row frame; keys beyond META_KEYS depend on the program.
-META_SCHEMA = pa.DataFrameSchema(
-    {
-        "group_id": pa.Column(str, _NONEMPTY),
-        "evidence_set": pa.Column(str, _KNOWN_SET),
-        "category": pa.Column(str),
-        "session": pa.Column(str, _NONEMPTY),
-    },
-    checks=[_KNOWN_CATEGORY],
-)
-
-INDEX_SCHEMA = pa.DataFrameSchema(
-    {
-        "group_id": pa.Column(
-            str,
-            pa.Check.str_matches(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$", name="group id is a folder name"),
-            unique=True,
-        ),
-        "evidence_set": pa.Column(str, _KNOWN_SET),
-        "category": pa.Column(str),
-        "session": pa.Column(str, _NONEMPTY),
-        "recorded_at": pa.Column(
-            str,
-            pa.Check(
-                lambda s: pd.to_datetime(s, errors="coerce", format="ISO8601").notna(),
-                name="recorded_at is ISO 8601",
-                error="not an ISO 8601 time",
-            ),
-        ),
-        "n_mocap": pa.Column("int64", pa.Check.ge(0, name="row count >= 0"), coerce=True),
-        "n_servo": pa.Column("int64", pa.Check.ge(0, name="row count >= 0"), coerce=True),
-    },
-    checks=[_KNOWN_CATEGORY],
-    strict=True,
-    ordered=True,
-)
-assert list(INDEX_SCHEMA.columns) == list(INDEX_COLUMNS)
-
-MOCAP_SCHEMA = _mocap_schema()
-SERVO_SCHEMA = _servo_schema()
+# --- rules that need limits --------------------------------------------------------------------
 
 
-def _first_row(err: SchemaError):
-    fc = err.failure_cases
-    if isinstance(fc, pd.DataFrame) and "index" in fc and fc["index"].notna().any():
-        return fc["index"].dropna().iloc[0]
-    return None
-
-
-def _first_case(err: SchemaError):
-    fc = err.failure_cases
-    if isinstance(fc, pd.DataFrame) and "failure_case" in fc and len(fc):
-        return fc["failure_case"].iloc[0]
-    return fc
-
-
-def _run_schema(schema, df, path, group, noun="column"):
-    """Validate; on failure raise a RecordingError for the first broken rule.
-
-    `group` is the group id, or a callable row-index -> group id (index.csv, one group a row).
-    """
-    try:
-        return schema.validate(df)
-    except SchemaErrors as errs:  # pandera raises these for strict/coerce even when not lazy
-        err = errs.schema_errors[0]
-    except SchemaError as e:
-        err = e
-    col = getattr(err.schema, "name", None) if isinstance(err.schema, pa.Column) else None
-    row = _first_row(err)
-    code = err.reason_code
-    if code == SchemaErrorReason.COLUMN_NOT_IN_DATAFRAME:
-        what, rule = f"{noun} '{_first_case(err)}' missing", f"required {noun}s"
-    elif code == SchemaErrorReason.COLUMN_NOT_IN_SCHEMA:
-        what, rule = f"unexpected {noun} '{_first_case(err)}'", f"no extra {noun}s"
-    elif code == SchemaErrorReason.COLUMN_NOT_ORDERED:
-        what, rule = f"{noun}s out of order: {list(df.columns)}", f"{noun} order"
-    elif code in (SchemaErrorReason.WRONG_DATATYPE, SchemaErrorReason.DATATYPE_COERCION):
-        what = f"{noun} '{col}' is {df[col].dtype}, expected {err.schema.dtype}"
-        rule = f"{noun} dtype"
-    elif code == SchemaErrorReason.SERIES_CONTAINS_NULLS:
-        what, rule = f"{noun} '{col}' has empty values", f"{noun} '{col}' not null"
-    elif code == SchemaErrorReason.SERIES_CONTAINS_DUPLICATES:
-        what, rule = f"{noun} '{col}' repeats '{_first_case(err)}'", f"unique {col}"
-    else:
-        # Named checks carry the rule; their `error` (or the built-in's own) says what failed.
-        rule = getattr(err.check, "name", None) or str(code)
-        what = getattr(err.check, "error", None) or "fails"
-        if col:
-            what = f"{noun} '{col}': {what}"
-        if row is not None:
-            what += f" at row {row}"
-            if "t" in df:
-                what += f" (t={df['t'].loc[row]:.4f} s)"
-            case = _first_case(err)
-            if col and np.isscalar(case):
-                what += f": {case.item() if isinstance(case, np.generic) else case!r}"
-    if callable(group):
-        group = group(row) if row is not None else "-"
-    raise RecordingError(path, group, what, rule) from None
-
-
-# --- readers that turn read failures into RecordingErrors ------------------------------------
-
-
-def _read_parquet(path: Path, gid: str) -> pd.DataFrame:
-    if not path.exists():
-        raise RecordingError(path, gid, "missing", "group has its three files")
-    try:
-        return read_parquet(path)
-    except (OSError, ValueError, pa_arrow.ArrowException) as e:
-        raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
-
-
-def _parquet_rows(path: Path, gid: str) -> int:
-    try:
-        return parquet_rows(path)  # footer only: fast on a thousand groups
-    except (OSError, ValueError, pa_arrow.ArrowException) as e:
-        raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
-
-
-def _read_meta(path: Path, gid: str, index_row: dict | None = None) -> dict:
-    if not path.exists():
-        raise RecordingError(path, gid, "missing", "group has its three files")
-    try:
-        meta = json.loads(path.read_text())
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise RecordingError(path, gid, f"not JSON: {e}", "meta.json is JSON") from None
-    if not isinstance(meta, dict):
+def _check_meta(meta: dict, path, gid: str, lim: Limits, t_span) -> None:
+    v = meta.get("format_version", FORMAT_VERSION)  # recordings that predate the key are version 1
+    if type(v) is not int or v != FORMAT_VERSION:
         raise RecordingError(
-            path, gid, f"holds a {type(meta).__name__}, not an object", "meta.json is an object"
+            path,
+            gid,
+            f"format_version {v!r}; this pipeline reads {FORMAT_VERSION}",
+            f"format version {FORMAT_VERSION}",
         )
-    _run_schema(
-        META_SCHEMA, pd.DataFrame([{k: meta[k] for k in META_KEYS if k in meta}]), path, gid, noun="key"
-    )
-    if meta["group_id"] != gid:
+    es, cat = meta["evidence_set"], meta["category"]
+    for key, table in (("program", lim.program), ("labels", lim.labels)):
+        need = lim.of(table, es, cat)
+        if need is None:
+            raise RecordingError(
+                path, gid, f"no gate.{key} entry for {es}", f"gate.{key} names every evidence set"
+            )
+        got = meta.get(key)
+        if not isinstance(got, dict):
+            raise RecordingError(
+                path, gid, f"'{key}' missing or not an object", f"{key} complete per evidence set"
+            )
+        for k in need:
+            if got.get(k) is None:
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"{key} has no '{k}' ({es}/{cat} needs {', '.join(need)})",
+                    f"{key} complete per evidence set",
+                )
+    for k, val in meta["labels"].items():
+        # Times are when things happened in this recording: numbers inside its time span.
+        if k.startswith("t_") and val is not None:
+            if (
+                isinstance(val, bool)
+                or not isinstance(val, (int, float))
+                or not t_span[0] <= val <= t_span[1]
+            ):
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"label {k}={val!r} is not a time in {t_span[0]:.3f}..{t_span[1]:.3f} s",
+                    "label times inside the recording",
+                )
+        elif k in ("attached", "retrieved", "snap_speed_event") and not isinstance(val, bool):
+            raise RecordingError(
+                path, gid, f"label {k}={val!r} is not true/false", "outcome labels are booleans"
+            )
+
+
+def _longest(t: np.ndarray, ok: np.ndarray, t0: float, t1: float):
+    """Longest span of [t0, t1] without a sample where `ok`: (length, start, end)."""
+    pts = np.concatenate([[t0], t[ok], [t1]])
+    k = int(np.argmax(np.diff(pts)))
+    return pts[k + 1] - pts[k], pts[k], pts[k + 1]
+
+
+def _grid_span(tm: np.ndarray, ts: np.ndarray, hz: float):
+    """First and last point of the 50 Hz grid resampling fills (resample.resample_group)."""
+    t0, t1 = max(tm[0], ts[0]), min(tm[-1], ts[-1])
+    return np.ceil(t0 * hz - 1e-6) / hz, np.floor(t1 * hz + 1e-6) / hz
+
+
+def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: bool, span) -> None:
+    t = mocap["t"].to_numpy()
+    gap = float(np.diff(t).max())
+    if gap > lim.max_mocap_gap_s + 1e-9:  # rows missing altogether: every body lost at once
+        k = int(np.argmax(np.diff(t)))
         raise RecordingError(
-            path, gid, f"group_id '{meta['group_id']}' in folder '{gid}'", "meta group_id matches folder"
+            path,
+            gid,
+            f"no sample for {gap:.3f} s from t={t[k]:.3f} to t={t[k + 1]:.3f} s",
+            f"mocap hole <= {lim.max_mocap_gap_s:g} s",
         )
-    for k in META_KEYS[1:]:
-        if index_row is not None and k in index_row and str(index_row[k]) != meta[k]:
+    bodies = TRACKED_BODIES + (("target",) if has_target else ())
+    for b in bodies:
+        ok = mocap[f"{b}_valid"].to_numpy()
+        if b == "target":
+            frac = float(ok.mean())
+            if frac < lim.min_target_valid_fraction:
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"target tracked in {frac:.0%} of samples",
+                    f"target tracked >= {lim.min_target_valid_fraction:.0%}",
+                )
+        elif not ok.any():
+            raise RecordingError(
+                path, gid, f"{b} never tracked", f"mocap dropout <= {lim.max_mocap_gap_s:g} s"
+            )
+        else:
+            # Exactly resampling's bridging rule: gaps on the grid's span, its edges included.
+            n, a, e = _longest(np.clip(t, *span), ok, *span)
+            if n > lim.max_mocap_gap_s + 1e-9:
+                raise RecordingError(
+                    path,
+                    gid,
+                    f"{b} not tracked for {n:.3f} s from t={a:.3f} to t={e:.3f} s",
+                    f"mocap dropout <= {lim.max_mocap_gap_s:g} s",
+                )
+        vmax = lim.max_speed_mps.get(b)
+        if vmax is None or ok.sum() < 2:
+            continue
+        p = mocap.loc[ok, [f"{b}_x", f"{b}_y", f"{b}_z"]].to_numpy()
+        tv = t[ok]
+        d = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        v = d / np.diff(tv)
+        k = int(np.argmax(v))
+        if v[k] > vmax:
             raise RecordingError(
                 path,
                 gid,
-                f"{k} '{meta[k]}' but index.csv says '{index_row[k]}'",
-                "meta.json agrees with index.csv",
+                f"{b} moves {d[k]:.3f} m in {tv[k + 1] - tv[k]:.4f} s ({v[k]:.1f} m/s) "
+                f"at t={tv[k]:.3f} s",
+                f"{b} speed <= {vmax:g} m/s",
             )
-    return meta
 
 
-def _file_entry(path: Path) -> dict:
-    data = path.read_bytes()
-    return {"path": str(path), "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
+def _check_servo(servo: pd.DataFrame, mocap: pd.DataFrame, path, gid: str, lim: Limits) -> None:
+    # Every 50 Hz state needs servo positions, so the servo log must span the mocap, densely.
+    tm, ts = mocap["t"].to_numpy(), servo["t"].to_numpy()
+    if ts[0] > tm[0] + COVER_TOL_S or ts[-1] < tm[-1] - COVER_TOL_S:
+        raise RecordingError(
+            path,
+            gid,
+            f"servo log spans {ts[0]:.3f}..{ts[-1]:.3f} s, mocap {tm[0]:.3f}..{tm[-1]:.3f} s",
+            "servo log covers mocap",
+        )
+    dt = np.diff(ts)
+    k = int(np.argmax(dt))
+    if dt[k] > lim.max_servo_gap_s + 1e-9:
+        raise RecordingError(
+            path,
+            gid,
+            f"no sync-read for {dt[k]:.3f} s from t={ts[k]:.3f} to t={ts[k + 1]:.3f} s",
+            f"servo log gap <= {lim.max_servo_gap_s:g} s",
+        )
 
 
 # --- public API ------------------------------------------------------------------------------
 
 
-def validate_group(raw_dir, group_id: str, index_row: dict | None = None) -> dict:
-    """Check one group's three files; return its raw-manifest entry (sha256 per file)."""
-    paths = group_paths(raw_dir, group_id)
-    meta = _read_meta(paths["meta"], group_id, index_row)
-    mocap = _read_parquet(paths["mocap"], group_id)
-    _run_schema(MOCAP_SCHEMA, mocap, paths["mocap"], group_id)
-    servo = _read_parquet(paths["servo"], group_id)
-    _run_schema(SERVO_SCHEMA, servo, paths["servo"], group_id)
-
-    # Every 50 Hz state needs servo positions, so the servo log must span the mocap.
-    tm, ts = mocap["t"].to_numpy(), servo["t"].to_numpy()
-    if ts[0] > tm[0] + COVER_TOL_S or ts[-1] < tm[-1] - COVER_TOL_S:
-        raise RecordingError(
-            paths["servo"],
-            group_id,
-            f"servo log spans {ts[0]:.3f}..{ts[-1]:.3f} s, mocap {tm[0]:.3f}..{tm[-1]:.3f} s",
-            "servo log covers mocap",
-        )
+def validate_group(
+    raw_dir, group_id: str, index_row: dict | None = None, limits: Limits | None = None
+) -> dict:
+    """Every rule for one group; return its raw-manifest entry (sha256 per file)."""
+    lim = limits or Limits()
+    paths = group_paths(raw_dir, group_id)  # ids are names: the folder stays inside raw_dir
+    meta = read_meta_checked(paths["meta"], group_id, index_row)
+    mocap = read_recording(paths["mocap"], group_id)
+    check_mocap(mocap, paths["mocap"], group_id)
+    servo = read_recording(paths["servo"], group_id)
+    check_servo(servo, paths["servo"], group_id)
+    tm = mocap["t"].to_numpy()
+    _check_meta(meta, paths["meta"], group_id, lim, (tm[0], tm[-1]))
     if index_row is not None:
         for key, n, name in (
             ("n_mocap", len(mocap), "mocap.parquet"),
@@ -342,13 +283,26 @@ def validate_group(raw_dir, group_id: str, index_row: dict | None = None) -> dic
                     f"{key} {index_row[key]} but {name} has {n} rows",
                     f"{key} matches {name}",
                 )
+    es, cat = meta["evidence_set"], meta["category"]
+    has_target = es in lim.target_groups or f"{es}/{cat}" in lim.target_groups
+    if has_target and not isinstance(meta.get("target"), dict):
+        raise RecordingError(
+            paths["meta"],
+            group_id,
+            f"no 'target' object in a {es}/{cat} group",
+            "target trials describe the target",
+        )
+    _check_servo(servo, mocap, paths["servo"], group_id, lim)
+    _check_motion(
+        mocap, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
+    )
     valid = mocap[[f"{b}_valid" for b in TRACKED_BODIES]].all(axis=1)
     return {
         "group_id": group_id,
-        "evidence_set": meta["evidence_set"],
-        "category": meta["category"],
+        "evidence_set": es,
+        "category": cat,
         "session": meta["session"],
-        "files": {name: _file_entry(group_dir(raw_dir, group_id) / name) for name in GROUP_FILES},
+        "files": {name: file_entry(group_dir(raw_dir, group_id) / name) for name in GROUP_FILES},
         "n_mocap": int(len(mocap)),
         "n_servo": int(len(servo)),
         "duration_s": float(tm[-1] - tm[0]),
@@ -356,46 +310,77 @@ def validate_group(raw_dir, group_id: str, index_row: dict | None = None) -> dic
     }
 
 
-def validate_index(raw_dir) -> pd.DataFrame:
-    """Check index.csv against the group folders (cheap: parquet footers and meta.json only)."""
+def read_index(raw_dir, pattern: str = GROUP_ID_PATTERN) -> pd.DataFrame:
+    """index.csv as a table of strings (counts as int), or a one-line RecordingError: missing,
+    empty, unreadable, wrong columns, bad or duplicate ids, unknown sets or categories."""
     path = Path(raw_dir) / "index.csv"
-    if not path.exists():
+    if not path.is_file():
         raise RecordingError(path, "-", "missing", "raw_data/index.csv lists every group")
     try:
-        raw = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (OSError, ValueError) as e:
+        # csv first: pandas' own errors on odd files are tracebacks, not rules.
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
         raise RecordingError(path, "-", f"cannot be read: {e}", "readable csv") from None
+    if not rows:
+        raise RecordingError(path, "-", "empty file", "index.csv has a header and a row per group")
+    header, body = rows[0], rows[1:]
+    if any(len(r) != len(header) for r in body):
+        n = next(i for i, r in enumerate(body) if len(r) != len(header))
+        raise RecordingError(
+            path,
+            body[n][0] if body[n] else "-",
+            f"row {n + 1} has {len(body[n])} fields, header {len(header)}",
+            "readable csv",
+        )
+    raw = pd.DataFrame(body, columns=header, dtype=str)
+    if raw.columns.duplicated().any():
+        raise RecordingError(path, "-", f"repeated column in {header}", "index columns")
     gid_of = lambda row: raw["group_id"].iloc[int(row)] if "group_id" in raw else "-"  # noqa: E731
-    index = _run_schema(INDEX_SCHEMA, raw, path, gid_of)
+    return run_schema(index_schema(pattern), raw, path, gid_of)
 
+
+def check_folders(raw_dir, group_ids) -> None:
+    """Every folder under groups/ is a listed group (a stray folder is a group nobody planned)."""
     groups = Path(raw_dir) / "groups"
-    on_disk = (
-        sorted(p.name for p in groups.iterdir() if p.is_dir() and not p.name.startswith("."))
-        if groups.is_dir()
-        else []
-    )
-    listed = set(index.group_id)
-    for gid in on_disk:
-        if gid not in listed:
-            raise RecordingError(
-                groups / gid, gid, "folder has no row in index.csv", "every group has an index row"
-            )
+    listed = set(group_ids)
+    if groups.is_dir():
+        for p in sorted(groups.iterdir()):
+            if not p.name.startswith(".") and p.is_dir() and p.name not in listed:
+                raise RecordingError(
+                    p, p.name, "folder has no row in index.csv", "every group has an index row"
+                )
+
+
+def validate_index(raw_dir, limits: Limits | None = None, open_files: bool = True) -> pd.DataFrame:
+    """index.csv against the group folders (cheap: parquet footers and meta.json only). With
+    open_files=False only the index and the folders' files are looked at (the workflow's index job:
+    each group's row counts and meta.json are checked against its row by validate_group, in its
+    shard's job, which declares those files)."""
+    lim = limits or Limits()
+    path = Path(raw_dir) / "index.csv"
+    index = read_index(raw_dir, lim.group_id_pattern)
+    check_folders(raw_dir, index.group_id)
     for row in index.to_dict("records"):
         gid, paths = row["group_id"], group_paths(raw_dir, row["group_id"])
         for p in paths.values():
             if not p.exists():
                 raise RecordingError(p, gid, "missing (listed in index.csv)", "index row has its files")
+        if not open_files:
+            continue
         for key, p in (("n_mocap", paths["mocap"]), ("n_servo", paths["servo"])):
-            n = _parquet_rows(p, gid)
+            n = recording_rows(p, gid)
             if n != row[key]:
                 raise RecordingError(
                     path, gid, f"{key} {row[key]} but {p.name} has {n} rows", f"{key} matches {p.name}"
                 )
-        _read_meta(paths["meta"], gid, row)
+        read_meta_checked(paths["meta"], gid, row)
     return index
 
 
-def validate_shard(raw_dir, group_ids: list[str], index: pd.DataFrame) -> list[dict]:
+def validate_shard(
+    raw_dir, group_ids: list[str], index: pd.DataFrame, limits: Limits | None = None
+) -> list[dict]:
     """Manifest entries of a shard's groups, each checked against its index.csv row."""
     rows = {r["group_id"]: r for r in index.to_dict("records")}
     out = []
@@ -404,5 +389,5 @@ def validate_shard(raw_dir, group_ids: list[str], index: pd.DataFrame) -> list[d
             raise RecordingError(
                 Path(raw_dir) / "index.csv", gid, "no row in index.csv", "every group has an index row"
             )
-        out.append(validate_group(raw_dir, gid, rows[gid]))
+        out.append(validate_group(raw_dir, gid, rows[gid], limits))
     return out

@@ -4,10 +4,16 @@ import sys
 # The package beside the Snakefile, installed or not.
 sys.path.insert(0, workflow.basedir)
 
+from dataclasses import asdict
+from pathlib import Path
+
 from embodied_snap import protocol
+from embodied_snap import sealed
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.plan import PlanError, load_plan
-from embodied_snap.rawformat import group_paths
+from embodied_snap.rawformat import RecordingError, group_paths
+from embodied_snap.validate import Limits
+from embodied_snap.verdicts import Verdicts, index_rows
 
 RAW = config["raw_data"]["dir"]
 BUDGET = config["budgets"][config["budget"]]
@@ -24,16 +30,52 @@ def protocol_params(*sections):
     return protocol.params(config, *sections)
 
 
+# The plan and the gate decide before the DAG exists (docs/data.md, "The gate"): a broken
+# index.csv, a bad id, a stray folder or a broken recording stops the run with one line, and no
+# job runs, so nothing under results/ changes until the user fixes the file or excludes the
+# group (--config raw_data='{exclude: [id]}').
 try:
     PLAN = load_plan(config, RAW)
-except PlanError as e:
-    raise WorkflowError(str(e)) from None
+except (PlanError, RecordingError) as e:
+    raise WorkflowError(f"error: {e}") from None
+EXCLUDED = PLAN.attrs["excluded"]
 
 SHARDS = {s: list(g.group_id) for s, g in PLAN.groupby("shard", sort=True)}
 ROLE_SHARDS = {
     r: sorted(PLAN[PLAN.role == r].shard.unique())
     for r in ("train", "validation", "sealed")
 }
+
+
+LIMITS = Limits.from_config(config)
+GATE = Verdicts(
+    RAW,
+    LIMITS,
+    index_rows(RAW, PLAN, LIMITS.group_id_pattern),
+    ".snakemake/esnap/gate.json",
+)
+
+
+def gate(gids):
+    """The gate's verdict on these groups; a rejection stops the run with one line."""
+    try:
+        GATE.check(gids)
+    except RecordingError as e:
+        raise WorkflowError(f"error: {e}") from None
+
+
+def _acquired(shard):
+    return not TWIN or Path(f"results/twin/acquired/{shard}.json").exists()
+
+
+# Every recording already on disk is judged now, before any job; with the simulated rig, a shard
+# recorded during this run is judged when its acquisition checkpoint completes (shard_raw, raw_of).
+gate([g for s, gids in SHARDS.items() if _acquired(s) for g in gids])
+try:
+    if all(_acquired(s) for s in ROLE_SHARDS["sealed"]):
+        sealed.check(RAW, PLAN)
+except RecordingError as e:
+    raise WorkflowError(f"error: {e}") from None
 
 
 def imports(script):
@@ -48,9 +90,11 @@ def group_files(gids):
 
 
 def shard_raw(wildcards):
-    """A shard's recordings; with the simulated rig they exist once its acquisition ran."""
+    """A shard's recordings, once the gate passed them; with the simulated rig they exist once
+    its acquisition ran."""
     if TWIN:
         checkpoints.twin_acquire.get(shard=wildcards.shard)
+    gate(SHARDS[wildcards.shard])
     return group_files(SHARDS[wildcards.shard])
 
 
@@ -80,9 +124,16 @@ def raw_of(**where):
         if TWIN:
             for s in sel.shard.unique():
                 checkpoints.twin_acquire.get(shard=s)
+        gate(sel.group_id)
         return group_files(sel.group_id)
 
     return files
+
+
+def ancient_raw_of(**where):
+    """raw_of, marked ancient: for a record that must not follow the files' times."""
+    files = raw_of(**where)
+    return lambda wildcards: [ancient(f) for f in files(wildcards)]
 
 
 def validated(**where):

@@ -18,6 +18,7 @@ rule validate_shard:
         "../envs/esnap.yaml"
     params:
         groups=lambda wc: SHARDS[wc.shard],
+        gate=asdict(LIMITS),
     script:
         "../workflow_scripts/validate_shard.py"
 
@@ -26,7 +27,6 @@ rule validate_index:
     """index.csv against the group folders: unique ids, known sets, no row without files or files without row."""
     input:
         index=raw_index(),
-        raw=raw_of(),
         shards=ancient(expand("results/raw/shards/{shard}.json", shard=SHARDS)),
         code=imports("validate_index"),
     output:
@@ -35,6 +35,8 @@ rule validate_index:
         "logs/validate_index.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        gate=asdict(LIMITS),
     script:
         "../workflow_scripts/validate_index.py"
 
@@ -51,6 +53,8 @@ rule raw_manifest:
         "logs/raw_manifest.log",
     conda:
         "../envs/esnap.yaml"
+    params:
+        excluded=EXCLUDED,
     script:
         "../workflow_scripts/raw_manifest.py"
 
@@ -78,9 +82,32 @@ rule resample_shard:
         "../workflow_scripts/resample_shard.py"
 
 
+rule validate_sealed:
+    """The sealed test set, recorded once when first split (ids, categories, sha256 per file) beside
+    the recordings, so deleting results/ keeps it; every later plan is checked against it.
+    """
+    input:
+        raw=ancient_raw_of(role="sealed"),
+        code=imports("validate_sealed"),
+    output:
+        f"{RAW}/{sealed.RECORD}",
+    log:
+        "logs/validate_sealed.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        plan=select(role="sealed")[
+            ["group_id", "evidence_set", "category", "role"]
+        ].to_dict("records"),
+    script:
+        "../workflow_scripts/validate_sealed.py"
+
+
 rule split:
     """440/78/20 by acquisition group, seeded; depends on the group list alone."""
     input:
+        sealed=ancient(f"{RAW}/{sealed.RECORD}"),
         code=imports("split"),
     output:
         "results/splits/split.csv",

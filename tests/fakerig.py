@@ -176,6 +176,7 @@ def write_fake_group(
         "base": {"position": [float(v) for v in base_pos], "quaternion": [float(v) for v in base_quat]},
         "axis": [float(v) for v in qrot(np.asarray(base_quat, float), TIP_AXIS_LOCAL)],
         "program": {
+            "kind": "primitive",
             "rho1": 0.6,
             "rho2": 0.5,
             "rho3": 0.3,
@@ -184,7 +185,10 @@ def write_fake_group(
             "tau": 0.55,
             "bearing": 0.7,
         },
-        "labels": {"attached": False, "retrieved": False, "snap_speed_event": True},
+        # Times inside the recording (goal_program: preload at 0.5 s, release at 2.9 s).
+        "labels": {"attached": False, "retrieved": False, "snap_speed_event": True,
+                   **{k: round(float(t[0]) + dt, 4) for k, dt in (("t_preload", 0.5), ("t_slack", 2.8),
+                                                                   ("t_s2", 2.85), ("t_s1", 2.9))}},
     }
     write_group(raw_dir, meta, mocap, servo)
     return {

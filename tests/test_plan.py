@@ -55,13 +55,15 @@ def test_validation_larger_than_pool_is_refused():
 @pytest.mark.parametrize(
     "rows, rule",
     [
-        ([("att_0001", "attachment"), ("att_0001", "attachment")], "duplicate group_id"),
-        ([("xyz_0001", "wibble")], "unknown evidence set"),
+        ([("att_0001", "attachment"), ("att_0001", "attachment")], "unique group_id"),
+        ([("xyz_0001", "wibble")], "known evidence set"),
+        ([("../../x", "attachment")], "group id pattern"),
     ],
 )
 def test_rig_index_errors_are_one_line_and_name_group_and_rule(tmp_path, rows, rule):
     f = tmp_path / "index.csv"
-    pd.DataFrame([dict(group_id=g, evidence_set=e, category="target", session="s01") for g, e in rows]).to_csv(f, index=False)
+    pd.DataFrame([dict(group_id=g, evidence_set=e, category="target", session="s01", recorded_at="2026-03-01T10:00:00Z",
+                       n_mocap=1, n_servo=1) for g, e in rows]).to_csv(f, index=False)
     with pytest.raises(PlanError) as e:
         rig_plan(f)
     msg = str(e.value)
@@ -69,7 +71,7 @@ def test_rig_index_errors_are_one_line_and_name_group_and_rule(tmp_path, rows, r
 
 
 def test_rig_plan_missing_index(tmp_path):
-    with pytest.raises(PlanError, match="index.csv: missing"):
+    with pytest.raises(PlanError, match="index.csv: group -: missing"):
         rig_plan(tmp_path / "index.csv")
 
 

@@ -84,6 +84,9 @@ def test_fresh_run_builds_figures_and_lineage(wf):
     assert "entity" in prov and "activity" in prov
     split = pd.read_csv(wf / "results/splits/split.csv")
     assert split.role.value_counts().to_dict() == {"train": 9, "validation": 3, "sealed": 2}
+    # the sealed set, recorded beside the recordings when first split
+    rec = json.loads((wf / "raw_data/sealed.json").read_text())["groups"]
+    assert sorted(rec) == sorted(split[split.role == "sealed"].group_id)
 
 
 def test_nothing_to_do_after_a_run(wf):
@@ -111,7 +114,6 @@ def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
     jobs = dry_jobs(wf, "results/figures")
     assert jobs == sorted([
         ("validate_shard", "shard=attachment-00"),
-        ("validate_index", ""),
         ("characterize_attachment", ""),
         ("fig_limits", ""),
         ("raw_manifest", ""),
@@ -202,21 +204,38 @@ def test_injected_leak_is_caught(wf):
         split.write_bytes(keep)
 
 
-def test_broken_recording_stops_with_one_line_and_touches_nothing_else(wf):
+def test_broken_recording_stops_with_one_line_and_touches_nothing(wf):
+    """The gate decides while the plan is read: no job runs, no file under results/ changes."""
     f = wf / "raw_data/groups/att_0005/mocap.parquet"
-    good = f.read_bytes()
+    good, st = f.read_bytes(), f.stat()
     before = digest_tree(wf / "results")
     f.chmod(0o644)
     f.write_bytes(good[: len(good) // 2])  # a truncated parquet
     try:
         r = snakemake(wf, "results/figures", check=False)
         assert r.returncode != 0
-        lines = [l for l in (r.stdout + r.stderr).splitlines() if l.startswith("error:") and "att_0005" in l]
-        assert lines, r.stderr[-3000:]
-        assert "mocap.parquet" in lines[0] and "rule:" in lines[0]
-        after = digest_tree(wf / "results")
-        failed = "raw/shards/attachment-00.json"  # the rejected shard's own output is withdrawn
-        changed = {k for k in before if k != failed and not k.startswith("provenance/") and before[k] != after.get(k)}
-        assert not changed
+        lines = [l for l in (r.stdout + r.stderr).splitlines() if l.startswith("error:")]
+        assert len(lines) == 1 and "att_0005" in lines[0], r.stderr[-3000:]
+        assert "mocap.parquet" in lines[0] and "(rule: readable parquet)" in lines[0]
+        assert digest_tree(wf / "results") == before
     finally:
         f.write_bytes(good)
+        os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert dry_jobs(wf, "all") == []  # the same bytes and time again: nothing to redo
+
+
+def test_relabelled_index_row_stops_the_simulated_rig_too(wf):
+    idx = wf / "raw_data/index.csv"
+    good, st = idx.read_bytes(), idx.stat()
+    before = digest_tree(wf / "results")
+    idx.chmod(0o644)
+    idx.write_text(good.decode().replace("dyn_0007,dynamics,sealed", "dyn_0007,dynamics,free_space"))
+    try:
+        r = snakemake(wf, "all", check=False)
+        lines = [l for l in (r.stdout + r.stderr).splitlines() if l.startswith("error:")]
+        assert r.returncode != 0 and len(lines) == 1, r.stderr[-3000:]
+        assert "group dyn_0007: category 'free_space' but the plan says 'sealed'" in lines[0]
+        assert digest_tree(wf / "results") == before
+    finally:
+        idx.write_bytes(good)
+        os.utime(idx, ns=(st.st_atime_ns, st.st_mtime_ns))

@@ -5,11 +5,15 @@ import sys
 from embodied_snap.characterize import attachment, trials
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
+from embodied_snap.rawformat import RecordingError, write_json
 
 sys.stderr = open(snakemake.log[0], "w")
-with tracked(snakemake):
-    v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
-    out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups), v)
-    print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
-    write_json(out, snakemake.output[0])
+try:
+    with tracked(snakemake):
+        v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
+        out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups), v)
+        print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
+        write_json(out, snakemake.output[0])
+except RecordingError as e:  # a group the gate should have stopped: one line, never a dropped trial
+    print(f"error: {e}", file=sys.stderr)
+    sys.exit(f"error: {e}")

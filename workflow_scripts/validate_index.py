@@ -5,12 +5,12 @@ from pathlib import Path
 
 from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
-from embodied_snap.validate import RecordingError, validate_index
+from embodied_snap.validate import Limits, RecordingError, validate_index
 
 sys.stderr = open(snakemake.log[0], "w")
 try:
     with tracked(snakemake):
-        index = validate_index(Path(snakemake.input.index).parent)
+        index = validate_index(Path(snakemake.input.index).parent, Limits(**snakemake.params.gate), open_files=False)
         counts = index.groupby(["evidence_set", "category"]).size()
         write_json(
             {"groups": len(index), "counts": {f"{a}/{b}": int(n) for (a, b), n in counts.items()}},

@@ -12,6 +12,7 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 from statsmodels.stats.proportion import proportion_confint
 
+from ..rawformat import RecordingError
 LATERAL_M = 0.150
 
 
@@ -35,7 +36,12 @@ def grouped_auc(X, y, groups, make=model, n_splits=5) -> float:
 
 
 def fit(rows, attach_speed_mps: float) -> dict:
-    r = [x for x in rows if np.isfinite(x["v_peak"]) and np.isfinite(x["tilt_deg"])]
+    # Every trial the gate passed is measurable; one that is not stops the fit, never drops out of it.
+    for x in rows:
+        if not (np.isfinite(x["v_peak"]) and np.isfinite(x["tilt_deg"])):
+            raise RecordingError(f"groups/{x['group_id']}/mocap.parquet", x["group_id"],
+                                 "no peak speed or cup tilt to fit", "attachment trial measurable")
+    r = rows
     X = np.array([[x["v_peak"], x["tilt_deg"]] for x in r])
     y = np.array([bool(x["attached"]) for x in r], int)
     sess = np.array([x["session"] for x in r])

@@ -116,7 +116,7 @@ def save(model: Dynamics, path, **extra) -> None:
 
 
 def load(path, device="cpu") -> Dynamics:
-    ck = torch.load(path, map_location=device, weights_only=False)
+    ck = torch.load(path, map_location=device, weights_only=True)  # tensors and plain data only
     stats = {k: ck["state"][k].cpu().numpy() for k in ("x_mu", "x_sd", "v_sd", "u_mu", "u_sd", "r_sd")}
     m = Dynamics(stats, lookahead_of(ck["state"]["gru.weight_ih_l0"].shape[1])).to(device)
     m.load_state_dict(ck["state"])

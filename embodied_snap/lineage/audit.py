@@ -13,6 +13,7 @@ raw files) costs a stat per file.
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import time
@@ -144,8 +145,17 @@ def audit(result: str, root=".", config: dict | None = None) -> dict:
         given_unread=sorted(set(unread) - set(fed)),
         other_sources=dict(sorted(other_sources.items())),
         jobs=jobs,
+        excluded=_excluded(root),
         elapsed_s=round(time.perf_counter() - t0, 3),
     )
+
+
+def _excluded(root: Path) -> list[dict]:
+    """Groups the user left out of the run (raw_data.exclude), as the raw manifest names them."""
+    try:
+        return json.loads((root / "results/raw/manifest.json").read_text()).get("excluded", [])
+    except (OSError, ValueError):
+        return []
 
 
 def compact_ids(ids) -> str:
@@ -200,6 +210,8 @@ def format_audit(report: dict, hashes: bool = False) -> str:
     if r["not_fed"]:
         L.append("did not feed it: " + ", ".join(
             f"{k} (0/{r['evidence_sets'][k]['n_total']})" for k in r["not_fed"]))
+    for x in r.get("excluded", []):
+        L.append(f"excluded: {x['group_id']}, {x['reason']}")
     for p, h in r["other_sources"].items():
         L.append(f"also read: {p} sha256 {h[:12]}")
     L.append(f"job chain ({len(r['jobs'])} jobs, RESULT first):")

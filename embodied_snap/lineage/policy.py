@@ -17,7 +17,7 @@ from dataclasses import dataclass
 # lineage itself, the overview figure of the recordings): data does not flow *through* them, or
 # the raw manifest, which reads every group, would make every group reach everything after it.
 BOOKKEEPING = frozenset({
-    "validate_shard", "validate_index", "raw_manifest", "twin_index", "split",
+    "validate_shard", "validate_index", "validate_sealed", "raw_manifest", "twin_index", "split",
     "check_separation", "prov_export", "fig_data_overview",
 })
 # Jobs whose outputs are statements about the whole run: reports list them as inputs only to run

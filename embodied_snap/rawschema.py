@@ -1,0 +1,363 @@
+"""The rig format's tables as schemas, and readers that turn read failures into one line.
+
+Each file of a recording has a pandera schema (MOCAP_SCHEMA, SERVO_SCHEMA, META_SCHEMA,
+index_schema); `run_schema` raises a RecordingError for the first rule a table breaks, naming the
+file, the group and the rule. The rules that span files or need limits from config (dropouts,
+speeds, labels, format version) are the gate's, in validate.py.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pandera.pandas as pa
+import pyarrow as pa_arrow
+from pandera.errors import SchemaError, SchemaErrorReason, SchemaErrors
+
+from .io import parquet_rows, read_parquet
+from .rawformat import (
+    BODIES,
+    CATEGORIES,
+    EVIDENCE_SETS,
+    INDEX_COLUMNS,
+    MOCAP_HZ,
+    POSE_FIELDS,
+    SERVO_HZ,
+    SERVO_IDS,
+    RecordingError,
+    mocap_columns,
+    servo_columns,
+)
+
+# Lab-frame coordinates of a mocap volume are a few metres at most; the same arm in millimetres
+# reads hundreds to thousands, so this bound catches a unit slip.
+MAX_ABS_POSITION_M = 5.0
+# Motion capture exports unit quaternions; float32 round-off stays far below this.
+QUAT_NORM_TOL = 1e-3
+# Mocap is hardware-clocked (tight); the servo sync-read loop is jittered (loose).
+MOCAP_RATE_TOL = 0.01
+SERVO_RATE_TOL = 0.3
+# XM430-W350-R in extended position mode: +-256 revolutions of 4096 ticks.
+TICK_LIMIT = 1_048_575
+# XM430 current limit (1193 units of 2.69 mA); a log in raw units or amperes falls outside.
+CURRENT_LIMIT_MA = 3300.0
+# The servo log may start or end this much inside the mocap span (one sync-read or a few).
+COVER_TOL_S = 0.05
+# Keys every meta.json carries whatever the evidence set (the rest depends on the program).
+META_KEYS = ("group_id", "evidence_set", "category", "session")
+# Bodies the state x_t is built from; the target is tracked but not part of x_t.
+TRACKED_BODIES = ("base", "s1", "s2", "tip")
+# Group ids are folder names (raw_data.group_id_pattern overrides it): no separators, no leading dot.
+GROUP_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$"
+
+
+# --- schemas -------------------------------------------------------------------------------
+
+
+def _strictly_increasing(s: pd.Series) -> pd.Series:
+    return pd.Series(np.diff(s.to_numpy(), prepend=-np.inf) > 0, index=s.index)
+
+
+_IN_METRES = pa.Check.in_range(-MAX_ABS_POSITION_M, MAX_ABS_POSITION_M, name="positions in metres")
+_INCREASING = pa.Check(_strictly_increasing, name="t strictly increasing", error="t does not increase")
+_KNOWN_SET = pa.Check.isin(EVIDENCE_SETS, name="known evidence set", error="not a known evidence set")
+
+
+def _rate_check(hz: float, tol: float, name: str) -> pa.Check:
+    # The median step is robust to jitter and to a few lost samples.
+    return pa.Check(
+        lambda df: len(df) > 1 and abs(np.median(np.diff(df["t"].to_numpy())) * hz - 1.0) <= tol,
+        name=name,
+        error=f"median sample interval is not 1/{hz:g} s (+-{tol:.0%})",
+    )
+
+
+def _body_checks(b: str) -> list[pa.Check]:
+    pos = [f"{b}_{f}" for f in POSE_FIELDS[:3]]
+    quat = [f"{b}_{f}" for f in POSE_FIELDS[3:]]
+    v = f"{b}_valid"
+    return [
+        # Invalid samples may hold anything (NaN, stale values); valid ones must be complete.
+        pa.Check(
+            lambda df: ~df[v] | np.isfinite(df[pos + quat].to_numpy()).all(axis=1),
+            name=f"valid {b} samples complete",
+            error=f"{b} marked valid but its pose has NaN/inf",
+        ),
+        pa.Check(
+            lambda df: ~df[v] | (np.abs(np.linalg.norm(df[quat].to_numpy(), axis=1) - 1) <= QUAT_NORM_TOL),
+            name=f"unit {b} quaternions",
+            error=f"{b} quaternion norm differs from 1 by more than {QUAT_NORM_TOL:g}",
+        ),
+    ]
+
+
+def _mocap_schema() -> pa.DataFrameSchema:
+    cols = {"t": pa.Column("float64", _INCREASING)}
+    for b in BODIES:
+        for f in POSE_FIELDS:
+            # NaN allowed: tracking lost. Quaternions are checked as a whole (unit norm) below.
+            in_m = [_IN_METRES] if f in "xyz" else []
+            cols[f"{b}_{f}"] = pa.Column("float64", in_m, nullable=True)
+        cols[f"{b}_valid"] = pa.Column("bool")
+    checks = [_rate_check(MOCAP_HZ, MOCAP_RATE_TOL, f"mocap rate {MOCAP_HZ:g} Hz")]
+    for b in BODIES:
+        checks += _body_checks(b)
+    assert list(cols) == mocap_columns()
+    return pa.DataFrameSchema(cols, checks=checks, strict=True)
+
+
+def _servo_schema() -> pa.DataFrameSchema:
+    ticks = [
+        pa.Check(
+            pd.api.types.is_integer_dtype, name="ticks are integers", error="ticks not stored as integers"
+        ),
+        pa.Check.in_range(-TICK_LIMIT, TICK_LIMIT, name="ticks in range"),
+    ]
+    current = [
+        pa.Check(pd.api.types.is_numeric_dtype, name="current is numeric", error="current not numeric"),
+        pa.Check.in_range(-CURRENT_LIMIT_MA, CURRENT_LIMIT_MA, name="current in mA"),
+    ]
+    cols = {"t": pa.Column("float64", _INCREASING)}
+    for i in SERVO_IDS:
+        cols[f"goal_{i}"] = pa.Column(None, ticks)
+        cols[f"present_{i}"] = pa.Column(None, ticks)
+        cols[f"current_{i}"] = pa.Column(None, current)
+    assert list(cols) == servo_columns()
+    return pa.DataFrameSchema(
+        cols, checks=[_rate_check(SERVO_HZ, SERVO_RATE_TOL, f"servo rate about {SERVO_HZ:g} Hz")], strict=True
+    )
+
+
+def _known_category(df: pd.DataFrame) -> pd.Series:
+    return pd.Series(
+        [c in CATEGORIES.get(e, ()) for e, c in zip(df.evidence_set, df.category)], index=df.index
+    )
+
+
+_KNOWN_CATEGORY = pa.Check(
+    _known_category, name="known category", error="category not one of its evidence set's"
+)
+_NONEMPTY = pa.Check.str_length(min_value=1, name="non-empty")
+
+# meta.json is validated as a one-row frame; keys beyond META_KEYS depend on the program.
+META_SCHEMA = pa.DataFrameSchema(
+    {
+        "group_id": pa.Column(str, _NONEMPTY),
+        "evidence_set": pa.Column(str, _KNOWN_SET),
+        "category": pa.Column(str),
+        "session": pa.Column(str, _NONEMPTY),
+    },
+    checks=[_KNOWN_CATEGORY],
+)
+
+def index_schema(pattern: str = GROUP_ID_PATTERN) -> pa.DataFrameSchema:
+    """index.csv; `pattern` is what a group id may look like (config raw_data.group_id_pattern)."""
+    return pa.DataFrameSchema(
+        {
+            "group_id": pa.Column(
+                str,
+                pa.Check.str_matches(pattern, name="group id pattern", error=f"does not match {pattern}"),
+                unique=True,
+            ),
+            "evidence_set": pa.Column(str, _KNOWN_SET),
+            "category": pa.Column(str),
+            "session": pa.Column(str, _NONEMPTY),
+            "recorded_at": pa.Column(
+                str,
+                pa.Check(
+                    lambda s: pd.to_datetime(s, errors="coerce", format="ISO8601").notna(),
+                    name="recorded_at is ISO 8601",
+                    error="not an ISO 8601 time",
+                ),
+            ),
+            "n_mocap": pa.Column("int64", pa.Check.ge(0, name="row count >= 0"), coerce=True),
+            "n_servo": pa.Column("int64", pa.Check.ge(0, name="row count >= 0"), coerce=True),
+        },
+        checks=[_KNOWN_CATEGORY],
+        strict=True,
+        ordered=True,
+    )
+
+
+INDEX_SCHEMA = index_schema()
+assert list(INDEX_SCHEMA.columns) == list(INDEX_COLUMNS)
+
+MOCAP_SCHEMA = _mocap_schema()
+SERVO_SCHEMA = _servo_schema()
+
+
+def _first_row(err: SchemaError):
+    fc = err.failure_cases
+    if isinstance(fc, pd.DataFrame) and "index" in fc and fc["index"].notna().any():
+        return fc["index"].dropna().iloc[0]
+    return None
+
+
+def _first_case(err: SchemaError):
+    fc = err.failure_cases
+    if isinstance(fc, pd.DataFrame) and "failure_case" in fc and len(fc):
+        return fc["failure_case"].iloc[0]
+    return fc
+
+
+def run_schema(schema, df, path, group, noun="column"):
+    """Validate; on failure raise a RecordingError for the first broken rule.
+
+    `group` is the group id, or a callable row-index -> group id (index.csv, one group a row).
+    """
+    try:
+        return schema.validate(df)
+    except SchemaErrors as errs:  # pandera raises these for strict/coerce even when not lazy
+        err = errs.schema_errors[0]
+    except SchemaError as e:
+        err = e
+    col = getattr(err.schema, "name", None) if isinstance(err.schema, pa.Column) else None
+    row = _first_row(err)
+    code = err.reason_code
+    if code == SchemaErrorReason.COLUMN_NOT_IN_DATAFRAME:
+        what, rule = f"{noun} '{_first_case(err)}' missing", f"required {noun}s"
+    elif code == SchemaErrorReason.COLUMN_NOT_IN_SCHEMA:
+        what, rule = f"unexpected {noun} '{_first_case(err)}'", f"no extra {noun}s"
+    elif code == SchemaErrorReason.COLUMN_NOT_ORDERED:
+        what, rule = f"{noun}s out of order: {list(df.columns)}", f"{noun} order"
+    elif code in (SchemaErrorReason.WRONG_DATATYPE, SchemaErrorReason.DATATYPE_COERCION):
+        what = f"{noun} '{col}' is {df[col].dtype}, expected {err.schema.dtype}"
+        rule = f"{noun} dtype"
+    elif code == SchemaErrorReason.SERIES_CONTAINS_NULLS:
+        what, rule = f"{noun} '{col}' has empty values", f"{noun} '{col}' not null"
+    elif code == SchemaErrorReason.SERIES_CONTAINS_DUPLICATES:
+        what, rule = f"{noun} '{col}' repeats '{_first_case(err)}'", f"unique {col}"
+    else:
+        # Named checks carry the rule; their `error` (or the built-in's own) says what failed.
+        rule = getattr(err.check, "name", None) or str(code)
+        what = getattr(err.check, "error", None) or "fails"
+        if col:
+            what = f"{noun} '{col}': {what}"
+        if row is not None:
+            what += f" at row {row}"
+            if "t" in df:
+                what += f" (t={df['t'].loc[row]:.4f} s)"
+            case = _first_case(err)
+            if col and np.isscalar(case):
+                what += f": {case.item() if isinstance(case, np.generic) else case!r}"
+    if callable(group):
+        group = group(row) if row is not None else "-"
+    raise RecordingError(path, group, what, rule) from None
+
+
+def _sorted_finite_t(df: pd.DataFrame, hz: float, tol: float) -> bool:
+    t = df["t"].to_numpy()
+    if df["t"].dtype != np.float64 or len(t) < 2 or not np.isfinite(t).all():
+        return False
+    dt = np.diff(t)
+    return bool((dt > 0).all() and abs(np.median(dt) * hz - 1.0) <= tol)
+
+
+def _within(a: np.ndarray, lim: float) -> bool:
+    a = a[~np.isnan(a)]
+    return a.size == 0 or bool(a.min() >= -lim and a.max() <= lim)
+
+
+def _mocap_passes(df: pd.DataFrame) -> bool:
+    """Everything MOCAP_SCHEMA checks, in a few numpy passes; True only when the schema passes.
+    pandera then runs only on a frame this doubts, to name the first broken rule: a good
+    recording is checked several times faster."""
+    if list(df.columns) != mocap_columns() or not _sorted_finite_t(df, MOCAP_HZ, MOCAP_RATE_TOL):
+        return False
+    for b in BODIES:
+        pose = df[[f"{b}_{f}" for f in POSE_FIELDS]]
+        if df[f"{b}_valid"].dtype != bool or any(d != np.float64 for d in pose.dtypes):
+            return False
+        a = pose.to_numpy()
+        if not _within(a[:, :3], MAX_ABS_POSITION_M):
+            return False
+        av = a[df[f"{b}_valid"].to_numpy()]
+        if not np.isfinite(av).all() or (np.abs(np.linalg.norm(av[:, 3:], axis=1) - 1) > QUAT_NORM_TOL).any():
+            return False
+    return True
+
+
+def _servo_passes(df: pd.DataFrame) -> bool:
+    """Everything SERVO_SCHEMA checks (see _mocap_passes)."""
+    if list(df.columns) != servo_columns() or not _sorted_finite_t(df, SERVO_HZ, SERVO_RATE_TOL):
+        return False
+    for c in df.columns[1:]:
+        d = df[c].dtype
+        ticks = not c.startswith("current_")
+        if not isinstance(d, np.dtype) or d.kind not in ("iu" if ticks else "iuf"):
+            return False
+        a = df[c].to_numpy()
+        if not ticks and not np.isfinite(a).all():
+            return False
+        if not _within(a.astype(float), TICK_LIMIT if ticks else CURRENT_LIMIT_MA):
+            return False
+    return True
+
+
+def check_mocap(df: pd.DataFrame, path, gid: str) -> None:
+    if not _mocap_passes(df):
+        run_schema(MOCAP_SCHEMA, df, path, gid)
+
+
+def check_servo(df: pd.DataFrame, path, gid: str) -> None:
+    if not _servo_passes(df):
+        run_schema(SERVO_SCHEMA, df, path, gid)
+
+
+# --- readers that turn read failures into RecordingErrors ------------------------------------
+
+
+def read_recording(path: Path, gid: str) -> pd.DataFrame:
+    if not path.exists():
+        raise RecordingError(path, gid, "missing", "group has its three files")
+    try:
+        return read_parquet(path)
+    except (OSError, ValueError, pa_arrow.ArrowException) as e:
+        raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
+
+
+def recording_rows(path: Path, gid: str) -> int:
+    try:
+        return parquet_rows(path)  # footer only: fast on a thousand groups
+    except (OSError, ValueError, pa_arrow.ArrowException) as e:
+        raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
+
+
+def read_meta_checked(path: Path, gid: str, index_row: dict | None = None) -> dict:
+    if not path.exists():
+        raise RecordingError(path, gid, "missing", "group has its three files")
+    try:
+        meta = json.loads(path.read_text())
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise RecordingError(path, gid, f"not JSON: {e}", "meta.json is JSON") from None
+    if not isinstance(meta, dict):
+        raise RecordingError(
+            path, gid, f"holds a {type(meta).__name__}, not an object", "meta.json is an object"
+        )
+    run_schema(
+        META_SCHEMA, pd.DataFrame([{k: meta[k] for k in META_KEYS if k in meta}]), path, gid, noun="key"
+    )
+    if meta["group_id"] != gid:
+        raise RecordingError(
+            path, gid, f"group_id '{meta['group_id']}' in folder '{gid}'", "meta group_id matches folder"
+        )
+    for k in META_KEYS[1:]:
+        if index_row is not None and k in index_row and str(index_row[k]) != meta[k]:
+            raise RecordingError(
+                path,
+                gid,
+                f"{k} '{meta[k]}' but index.csv says '{index_row[k]}'",
+                "meta.json agrees with index.csv",
+            )
+    return meta
+
+
+def file_entry(path: Path) -> dict:
+    data = path.read_bytes()
+    return {"path": str(path), "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
+
+

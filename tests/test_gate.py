@@ -1,0 +1,207 @@
+"""The gate's pieces that the corpus (tests/test_gate_corpus.py, slow) exercises only end to end:
+limits from config, ids as names, the verdict cache, the sealed-set record, exclusions, and
+downstream code that raises instead of dropping a group."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+from fakerig import write_fake_raw
+
+from embodied_snap import sealed
+from embodied_snap.characterize import attachment
+from embodied_snap.plan import PlanError, load_plan
+from embodied_snap.rawformat import RecordingError, group_dir, group_paths
+from embodied_snap.validate import Limits, validate_group
+from embodied_snap.verdicts import Verdicts
+
+REPO = Path(__file__).resolve().parent.parent
+CFG = yaml.safe_load((REPO / "config.yaml").read_text())
+
+
+def test_code_defaults_are_config_yaml():
+    assert Limits.from_config(CFG) == Limits()
+    assert Limits.from_config(CFG).max_mocap_gap_s == CFG["resample"]["max_gap_s"]
+
+
+@pytest.mark.parametrize("gid", ["../x", "../../etc", "/etc", "a/../../b"])
+def test_ids_are_names_not_paths(tmp_path, gid):
+    with pytest.raises(RecordingError, match=r"rule: group folder inside the raw directory\)$"):
+        group_dir(tmp_path, gid)
+
+
+def test_symlinked_group_folder_is_refused(tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "raw" / "groups").mkdir(parents=True)
+    (tmp_path / "raw" / "groups" / "g1").symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(RecordingError, match="outside"):
+        group_paths(tmp_path / "raw", "g1")
+    assert group_dir(tmp_path / "raw", "g2") == tmp_path / "raw" / "groups" / "g2"
+
+
+@pytest.fixture
+def raw(tmp_path):
+    d = tmp_path / "raw_data"
+    write_fake_raw(d, ("dyn_0001", "dyn_0002"), duration_s=3.0)
+    return d
+
+
+def test_verdicts_remember_passes_only(raw, tmp_path, monkeypatch):
+    import embodied_snap.verdicts as V
+
+    calls = []
+    real = V.validate_group
+    monkeypatch.setattr(V, "validate_group", lambda *a, **k: (calls.append(a[1]), real(*a, **k))[1])
+    cache = tmp_path / "gate.json"
+    Verdicts(raw, Limits(), {}, cache).check(["dyn_0001", "dyn_0002"])
+    assert calls == ["dyn_0001", "dyn_0002"]
+    Verdicts(raw, Limits(), {}, cache).check(["dyn_0001", "dyn_0002"])  # a rebuild: nothing re-read
+    assert calls == ["dyn_0001", "dyn_0002"]
+    # a changed file is judged again; its rejection is not remembered
+    p = group_paths(raw, "dyn_0002")["meta"]
+    p.write_text(p.read_text().replace('"session"', '"format_version": 2, "session"'))
+    for _ in range(2):
+        with pytest.raises(RecordingError, match="format version 1"):
+            Verdicts(raw, Limits(), {}, cache).check(["dyn_0001", "dyn_0002"])
+    assert calls == ["dyn_0001", "dyn_0002", "dyn_0002", "dyn_0002"]
+    # other limits: every verdict is judged again
+    Verdicts(raw, Limits(max_servo_gap_s=0.04), {}, cache).check(["dyn_0001"])
+    assert calls[-1] == "dyn_0001"
+
+
+def test_stricter_limits_reject_what_defaults_pass(raw):
+    validate_group(raw, "dyn_0001")
+    with pytest.raises(RecordingError, match=r"rule: tip speed <= 0\.1 m/s"):
+        validate_group(raw, "dyn_0001", limits=Limits(max_speed_mps={"tip": 0.1}))
+    with pytest.raises(RecordingError, match=r"rule: servo log gap <= 0\.005 s"):
+        validate_group(raw, "dyn_0001", limits=Limits(max_servo_gap_s=0.005))
+    with pytest.raises(RecordingError, match=r"rule: labels complete per evidence set"):
+        validate_group(raw, "dyn_0001", limits=Limits(labels={"dynamics": ["t_attach"]}))
+
+
+def _plan(ids_cats):
+    return pd.DataFrame(
+        [
+            dict(group_id=g, evidence_set="dynamics", category=c, role="sealed" if c == "sealed" else "train")
+            for g, c in ids_cats
+        ]
+    )
+
+
+def test_sealed_record_holds_until_resealed(raw):
+    plan = _plan([("dyn_0001", "free_space"), ("dyn_0002", "sealed")])
+    sealed.check(raw, plan)  # no record yet: nothing to hold
+    assert list(sealed.seal(raw, plan, "test")) == ["dyn_0002"]
+    sealed.check(raw, plan)
+    with pytest.raises(RecordingError, match=r"group dyn_0002: sealed group is now free_space \(train\)"):
+        sealed.check(raw, _plan([("dyn_0001", "free_space"), ("dyn_0002", "free_space")]))
+    with pytest.raises(
+        RecordingError,
+        match=r"group dyn_0001: free_space group joined the sealed set|dyn_0001: sealed group joined",
+    ):
+        sealed.check(raw, _plan([("dyn_0001", "sealed"), ("dyn_0002", "sealed")]))
+    with pytest.raises(RecordingError, match="no longer in the plan"):
+        sealed.check(raw, _plan([("dyn_0001", "free_space")]))
+    p = group_paths(raw, "dyn_0002")["servo"]
+    p.write_bytes(p.read_bytes() + b"\0")
+    with pytest.raises(
+        RecordingError, match=r"servo.parquet: group dyn_0002: recording of a sealed group changed"
+    ):
+        sealed.check(raw, plan)
+    sealed.seal(raw, plan, "esnap seal")  # the explicit re-seal
+    sealed.check(raw, plan)
+
+
+def _cfg(**raw_data):
+    cfg = yaml.safe_load((REPO / "config.yaml").read_text())
+    cfg["budget"] = "smoke"
+    cfg["raw_data"].update(raw_data)
+    return cfg
+
+
+def test_exclusion_keeps_every_other_group_in_place(tmp_path):
+    full = load_plan(_cfg(dir=str(tmp_path)))
+    ex = load_plan(_cfg(dir=str(tmp_path), exclude={"dyn_0003": "tip marker loose"}))
+    assert ex.attrs["excluded"] == {"dyn_0003": "tip marker loose"}
+    pd.testing.assert_frame_equal(full[full.group_id != "dyn_0003"].reset_index(drop=True), ex)
+    with pytest.raises(PlanError, match="group att_0999: not a group of this run"):
+        load_plan(_cfg(dir=str(tmp_path), exclude=["att_0999"]))
+
+
+def test_twin_index_must_match_the_plan_and_folders_must_be_planned(tmp_path):
+    plan = load_plan(_cfg(dir=str(tmp_path)))
+    rows = plan.assign(recorded_at="2026-03-01T10:00:00", n_mocap=1, n_servo=1)
+    cols = ["group_id", "evidence_set", "category", "session", "recorded_at", "n_mocap", "n_servo"]
+    rows.loc[rows.group_id == "dyn_0007", "category"] = "free_space"
+    rows[cols].to_csv(tmp_path / "index.csv", index=False)
+    with pytest.raises(PlanError, match=r"group dyn_0007: category 'free_space' but the plan says 'sealed'"):
+        load_plan(_cfg(dir=str(tmp_path)))
+    os.remove(tmp_path / "index.csv")
+    (tmp_path / "groups" / "stray_0001").mkdir(parents=True)
+    with pytest.raises(
+        PlanError, match=r"groups/stray_0001: group stray_0001: .*every group has an index row"
+    ):
+        load_plan(_cfg(dir=str(tmp_path)))
+
+
+def test_attachment_fit_raises_on_an_unmeasurable_trial():
+    rows = [
+        dict(group_id=f"att_{i:04d}", session="s01", v_peak=1.0, tilt_deg=5.0, attached=i % 2)
+        for i in range(4)
+    ]
+    rows[2]["tilt_deg"] = float("nan")
+    with pytest.raises(RecordingError, match="group att_0002: .*rule: attachment trial measurable"):
+        attachment.fit(rows, 1.0)
+
+
+def _edits():
+    nan = float("nan")
+    return {
+        "none": (lambda m: m, lambda s: s),
+        "nan in a valid pose": (lambda m: m.assign(tip_x=m.tip_x.where(m.index != 5, nan)), None),
+        "inf position": (lambda m: m.assign(s1_y=m.s1_y.where(m.index != 5, float("inf"))), None),
+        "6 m away": (lambda m: m.assign(base_z=m.base_z + 6), None),
+        "long quaternion": (lambda m: m.assign(tip_qw=m.tip_qw * 1.01), None),
+        "repeated t": (lambda m: m.assign(t=m.t.where(m.index != 9, m.t.shift(1))), None),
+        "t NaN": (lambda m: m.assign(t=m.t.where(m.index != 0, nan)), lambda s: s.assign(t=s.t.where(s.index != 0, nan))),
+        "t as int": (lambda m: m.assign(t=(m.t * 1000).astype("int64")), None),
+        "t as float32": (lambda m: m.assign(t=m.t.astype("float32")), lambda s: s.assign(t=s.t.astype("float32"))),
+        "columns reordered": (lambda m: m[list(reversed(m.columns))], lambda s: s[list(reversed(s.columns))]),
+        "valid as int": (lambda m: m.assign(s2_valid=m.s2_valid.astype(int)), None),
+        "nullable int ticks": (None, lambda s: s.assign(goal_1=s.goal_1.astype("Int64").where(s.index != 3, pd.NA))),
+        "float ticks": (None, lambda s: s.assign(present_2=s.present_2 + 0.5)),
+        "ticks out of range": (None, lambda s: s.assign(goal_4=s.goal_4.where(s.index != 3, 2_000_000))),
+        "current NaN": (None, lambda s: s.assign(current_5=s.current_5.where(s.index != 3, nan))),
+        "current as bool": (None, lambda s: s.assign(current_6=s.current_6 > 0)),
+        "current in A x1000": (None, lambda s: s.assign(current_7=s.current_7 * 1e3)),
+    }
+
+
+@pytest.mark.parametrize("edit", list(_edits()))
+def test_fast_path_passes_only_what_pandera_passes(raw, edit):
+    """The vectorised pre-check may doubt a good frame (pandera then decides), never pass a bad one."""
+    import pandera.errors as pe
+
+    from embodied_snap import rawschema as R
+
+    fm, fs = _edits()[edit]
+    p = group_paths(raw, "dyn_0001")
+    for fn, frame, fast, schema in (
+        (fm, pd.read_parquet(p["mocap"]), R._mocap_passes, R.MOCAP_SCHEMA),
+        (fs, pd.read_parquet(p["servo"]), R._servo_passes, R.SERVO_SCHEMA),
+    ):
+        if fn is None:
+            continue
+        df = fn(frame.copy())
+        try:
+            schema.validate(df)
+            ok = True
+        except (pe.SchemaError, pe.SchemaErrors):
+            ok = False
+        assert not fast(df) or ok
+        if edit == "none":
+            assert fast(df) and ok
