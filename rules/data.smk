@@ -96,7 +96,7 @@ rule validate_sealed:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=lambda wc, output: os.path.dirname(output[0]),
         plan=select(role="sealed")[
             ["group_id", "evidence_set", "category", "role"]
         ].to_dict("records"),
