@@ -24,9 +24,9 @@ import numpy as np
 import torch
 
 from embodied_snap.dynamics.model import N_U, N_X, Dynamics, load
+from embodied_snap.dynamics.rollout import Ensemble
 
 HISTORY, LOOKAHEAD = 20, 5  # the paper's windows (config `windows`): what the benchmark times
-from embodied_snap.dynamics.rollout import Ensemble
 
 
 def rollout_flops(model: Dynamics, batch: int, horizon: int) -> float:

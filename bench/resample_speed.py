@@ -16,9 +16,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from fakerig import write_fake_raw  # noqa: E402
-
 from embodied_snap.resample import resample_group  # noqa: E402
+
+from fakerig import write_fake_raw  # noqa: E402
 
 HZ, MAX_GAP_S = 50.0, 0.1  # config resample: the grid the benchmark times
 from embodied_snap.validate import validate_group  # noqa: E402

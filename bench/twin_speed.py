@@ -52,7 +52,10 @@ def main() -> None:
     total = 0.0
     for (es, cat), ts in per_cat.items():
         total += sum(ts) / len(ts) * int((plan.evidence_set.eq(es) & plan.category.eq(cat)).sum())
-    print(f"paper budget: {len(plan)} groups, ~{total:.0f} simulated s, ~{total / rate / 2 / 60:.1f} min on 2 cores (2 jobs)")
+    print(
+        f"paper budget: {len(plan)} groups, ~{total:.0f} simulated s, "
+        f"~{total / rate / 2 / 60:.1f} min on 2 cores (2 jobs)"
+    )
 
 
 if __name__ == "__main__":

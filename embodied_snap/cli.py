@@ -19,9 +19,8 @@ def _config(path: str, budget: str | None) -> dict:
 
 
 def _acquire(args):
-    from .twin.acquire import acquire_groups
-
     from .protocol import from_params
+    from .twin.acquire import acquire_groups
 
     part, raw, seed, proto, dt = args
     return acquire_groups(part, raw, seed=seed, proto=from_params(proto), dt=dt, progress=False)

@@ -144,7 +144,9 @@ def load_plan(config: dict, raw_dir: str | Path | None = None) -> pd.DataFrame:
     excluded = exclusions(config)
     unknown = sorted(set(excluded) - set(groups.group_id))
     if unknown:
-        raise PlanError(f"config raw_data.exclude: group {unknown[0]}: not a group of this run (rule: exclude names groups)")
+        raise PlanError(
+            f"config raw_data.exclude: group {unknown[0]}: not a group of this run (rule: exclude names groups)"
+        )
     groups = assign_roles(groups, b["split"]["validation"], config["seed"])
     plan = shard(groups, b["shard_size"])
     plan = plan[~plan.group_id.isin(list(excluded))].reset_index(drop=True)

@@ -112,7 +112,9 @@ def group_dir(raw_dir: str | Path, group_id: str) -> Path:
     d = root / str(group_id)
     real = d.resolve()
     if real.parent != root.resolve() or real.name != str(group_id):
-        raise RecordingError(d, group_id, f"resolves to {real}, outside {root}", "group folder inside the raw directory")
+        raise RecordingError(
+            d, group_id, f"resolves to {real}, outside {root}", "group folder inside the raw directory"
+        )
     return d
 
 

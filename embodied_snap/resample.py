@@ -16,8 +16,7 @@ import pandas as pd
 
 from .io import read_table
 from .quat import to_matrix
-from .rawformat import SERVO_IDS, TIP_AXIS_LOCAL, group_paths
-from .rawformat import RecordingError
+from .rawformat import SERVO_IDS, TIP_AXIS_LOCAL, RecordingError, group_paths
 from .rawschema import TRACKED_BODIES
 
 STATE_COLUMNS = (

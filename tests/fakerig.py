@@ -17,6 +17,7 @@ import pandas as pd
 
 from embodied_snap.rawformat import (
     MOCAP_HZ,
+    N_SERVOS,
     SERVO_IDS,
     TIP_AXIS_LOCAL,
     mocap_columns,
@@ -123,7 +124,7 @@ def make_mocap(
     return pd.DataFrame(cols)[mocap_columns()]
 
 
-def goal_program(t, n_servos=len(SERVO_IDS)):
+def goal_program(t, n_servos=N_SERVOS):
     """Step goals (ticks): preload at 0.5 s, release at 2.9 s, hold again at 4.5 s."""
     t = np.asarray(t, float)
     base = 2048 + 100 * np.arange(n_servos)

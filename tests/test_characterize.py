@@ -8,7 +8,8 @@ import pytest
 
 from embodied_snap.characterize import attachment, delay, heldbase, kinematics, release, servo, snap
 from embodied_snap.characterize import mocap as M
-from embodied_snap.characterize.claims import OURS, rows as claim_rows
+from embodied_snap.characterize.claims import OURS
+from embodied_snap.characterize.claims import rows as claim_rows
 from embodied_snap.reference import paper_values
 
 

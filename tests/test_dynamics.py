@@ -4,18 +4,18 @@ training run. No timing asserts; the whole file runs in well under a minute."""
 import dataclasses
 
 import numpy as np
-import pandas as pd
 import pytest
 import torch
 
 from embodied_snap import bearing as BR
 from embodied_snap.dynamics import evaluate, gate, hold
+from embodied_snap.dynamics import model as M
 from embodied_snap.dynamics import train as T
 from embodied_snap.dynamics.model import TIP, Dynamics, f_cv, n_params, norm_stats
 from embodied_snap.dynamics.rollout import Ensemble
-from embodied_snap.dynamics import model as M
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 from embodied_snap.windows import make_windows
+
 from paper_protocol import PROTO
 
 torch.set_num_threads(1)

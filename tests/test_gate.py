@@ -10,7 +10,6 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-from fakerig import write_fake_raw
 
 from embodied_snap import sealed
 from embodied_snap.characterize import attachment
@@ -18,6 +17,8 @@ from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import RecordingError, group_dir, group_paths
 from embodied_snap.validate import Limits, validate_group
 from embodied_snap.verdicts import Verdicts
+
+from fakerig import write_fake_raw
 
 REPO = Path(__file__).resolve().parent.parent
 CFG = yaml.safe_load((REPO / "config.yaml").read_text())
@@ -167,7 +168,10 @@ def _edits():
         "6 m away": (lambda m: m.assign(base_z=m.base_z + 6), None),
         "long quaternion": (lambda m: m.assign(tip_qw=m.tip_qw * 1.01), None),
         "repeated t": (lambda m: m.assign(t=m.t.where(m.index != 9, m.t.shift(1))), None),
-        "t NaN": (lambda m: m.assign(t=m.t.where(m.index != 0, nan)), lambda s: s.assign(t=s.t.where(s.index != 0, nan))),
+        "t NaN": (
+            lambda m: m.assign(t=m.t.where(m.index != 0, nan)),
+            lambda s: s.assign(t=s.t.where(s.index != 0, nan)),
+        ),
         "t as int": (lambda m: m.assign(t=(m.t * 1000).astype("int64")), None),
         "t as float32": (lambda m: m.assign(t=m.t.astype("float32")), lambda s: s.assign(t=s.t.astype("float32"))),
         "columns reordered": (lambda m: m[list(reversed(m.columns))], lambda s: s[list(reversed(s.columns))]),

@@ -40,7 +40,9 @@ def test_split_is_seeded_and_depends_on_seed():
 
 def test_shards_never_mix_evidence_sets_or_splits():
     p = plan()
-    per_shard = p.groupby("shard").agg(sets=("evidence_set", "nunique"), roles=("role", "nunique"), n=("group_id", "size"))
+    per_shard = p.groupby("shard").agg(
+        sets=("evidence_set", "nunique"), roles=("role", "nunique"), n=("group_id", "size")
+    )
     assert (per_shard.sets == 1).all() and (per_shard.roles == 1).all()
     assert per_shard.n.max() <= CFG["budgets"]["paper"]["shard_size"]
     assert p.group_id.is_unique
@@ -62,8 +64,20 @@ def test_validation_larger_than_pool_is_refused():
 )
 def test_rig_index_errors_are_one_line_and_name_group_and_rule(tmp_path, rows, rule):
     f = tmp_path / "index.csv"
-    pd.DataFrame([dict(group_id=g, evidence_set=e, category="target", session="s01", recorded_at="2026-03-01T10:00:00Z",
-                       n_mocap=1, n_servo=1) for g, e in rows]).to_csv(f, index=False)
+    pd.DataFrame(
+        [
+            dict(
+                group_id=g,
+                evidence_set=e,
+                category="target",
+                session="s01",
+                recorded_at="2026-03-01T10:00:00Z",
+                n_mocap=1,
+                n_servo=1,
+            )
+            for g, e in rows
+        ]
+    ).to_csv(f, index=False)
     with pytest.raises(PlanError) as e:
         rig_plan(f)
     msg = str(e.value)
@@ -76,7 +90,9 @@ def test_rig_plan_missing_index(tmp_path):
 
 
 def test_shard_names_carry_the_split_for_dynamics():
-    p = shard(assign_roles(twin_plan({"dynamics": {"free_space": 10, "sealed": 2}, "attachment": {"target": 3}}, 2), 2, 1), 4)
+    p = shard(
+        assign_roles(twin_plan({"dynamics": {"free_space": 10, "sealed": 2}, "attachment": {"target": 3}}, 2), 2, 1), 4
+    )
     assert set(p[p.role == "sealed"].shard) == {"dynamics_sealed-00"}
     assert set(p[p.evidence_set == "attachment"].shard) == {"attachment-00"}
     assert set(p[p.role == "train"].shard) == {"dynamics_train-00", "dynamics_train-01"}

@@ -9,6 +9,7 @@ from embodied_snap import bearing as BR
 from embodied_snap.policy import actions, geometry, networks, reward, search, targets
 from embodied_snap.primitive import release_goals
 from embodied_snap.twin import protocols as P
+
 from paper_protocol import PROTO
 
 RANGES = dict(rho1=[2400, 3700], dphi=[-25, 25], tau=[0.45, 0.675], rho2=[2100, 3300], rho3=[2200, 3600],

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from embodied_snap import protocol
+
 from paper_protocol import PROTO
 
 REPO = Path(__file__).resolve().parent.parent

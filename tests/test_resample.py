@@ -145,7 +145,8 @@ def test_short_dropouts_bridged_up_to_max_gap(raw):
     resample_group(raw, "dyn_0001", 50.0, max_gap_s=0.055)
     from embodied_snap.validate import RecordingError
 
-    with pytest.raises(RecordingError, match=r"group dyn_0001: s2 not tracked for 0\.054 s.*rule: recording passed the gate"):
+    match = r"group dyn_0001: s2 not tracked for 0\.054 s.*rule: recording passed the gate"
+    with pytest.raises(RecordingError, match=match):
         resample_group(raw, "dyn_0001", 50.0, max_gap_s=0.05)
 
 

@@ -6,6 +6,7 @@ import torch
 from embodied_snap.dynamics.model import TIP, Dynamics, norm_stats
 from embodied_snap.dynamics.rollout import Ensemble
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
+
 from paper_protocol import PROTO
 
 torch.set_num_threads(1)

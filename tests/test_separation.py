@@ -81,7 +81,9 @@ def test_policy_table():
     assert may_feed("delay_sweep", "dynamics_gate", {})
     assert not may_feed("sealed", "windows", {"role": "train"}) and may_feed("sealed", "windows", {"role": "sealed"})
     assert may_feed("sealed", "table_dynamics_claims", {}) and not may_feed("sealed", "fig_gates", {})
-    assert not may_feed("servo_calibration", "policy_search", {}) and may_feed("servo_calibration", "characterize_servo", {})
+    assert not may_feed("servo_calibration", "policy_search", {}) and may_feed(
+        "servo_calibration", "characterize_servo", {}
+    )
     assert may_feed("sealed", "raw_manifest", {})  # bookkeeping carries no data onward
     # an allow list: a rule it does not name is fed by nothing, whatever its name looks like
     assert not may_feed("delay_sweep", "characterize_delay_sweep_extra", {})
@@ -101,8 +103,10 @@ def test_sealed_group_in_train_split(tmp_path):
 
 def test_sealed_group_in_train_windows(tmp_path):
     v = check_records(_run(tmp_path, windows_train=["dyn_0001", "dyn_0002", "dyn_0004"]))
-    assert v == ["separation (windows): results/splits/windows_train.npz holds group dyn_0004 of role sealed "
-                 "(results/splits/split.csv); docs/design.md 3: " + POLICY["sealed"].rule]
+    assert v == [
+        "separation (windows): results/splits/windows_train.npz holds group dyn_0004 of role sealed "
+        "(results/splits/split.csv); docs/design.md 3: " + POLICY["sealed"].rule
+    ]
 
 
 def test_sealed_group_reaching_train_through_records(tmp_path):
@@ -115,24 +119,30 @@ def test_sealed_group_reaching_train_through_records(tmp_path):
 def test_delay_sweep_group_in_training_dataset(tmp_path):
     v = check_records(_run(tmp_path, shard_extra={"dynamics_train-00": ["dly_0001"]}))
     assert len(v) == 1, v
-    assert v[0].startswith("separation (records): results/splits/windows_train.npz (rule windows(role=train)) "
-                           "was fed by delay_sweep group dly_0001 through results/data/50hz/dynamics_train-00.parquet;")
+    assert v[0].startswith(
+        "separation (records): results/splits/windows_train.npz (rule windows(role=train)) "
+        "was fed by delay_sweep group dly_0001 through results/data/50hz/dynamics_train-00.parquet;"
+    )
     assert POLICY["delay_sweep"].rule in v[0]
 
 
 def test_evaluation_target_in_selection(tmp_path):
-    v = check_records(_run(tmp_path, targets={"training": range(0, 48), "selection": [100, 101, 250],
-                                              "evaluation": range(200, 600)}))
-    assert v == ["separation (targets): results/policy/targets_selection.parquet shares 1 target(s) with "
-                 "targets_evaluation.parquet (first: 250); docs/design.md 3: training, selection, evaluation, offset "
-                 "and release targets are disjoint (separate seeds)"]
+    v = check_records(
+        _run(tmp_path, targets={"training": range(0, 48), "selection": [100, 101, 250], "evaluation": range(200, 600)})
+    )
+    assert v == [
+        "separation (targets): results/policy/targets_selection.parquet shares 1 target(s) with "
+        "targets_evaluation.parquet (first: 250); docs/design.md 3: training, selection, evaluation, offset "
+        "and release targets are disjoint (separate seeds)"
+    ]
 
 
 def test_targets_by_position(tmp_path):
     _run(tmp_path)
     for name, xs in {"selection": [0.1, 0.2], "evaluation": [0.3, 0.2]}.items():
         pd.DataFrame({"x": xs, "y": [0.0, 0.0], "z": [0.5, 0.5]}).to_parquet(
-            tmp_path / f"results/policy/targets_{name}.parquet")
+            tmp_path / f"results/policy/targets_{name}.parquet"
+        )
     v = check_records(tmp_path)
     assert len(v) == 1 and "targets_selection.parquet shares 1 target(s)" in v[0]
 
@@ -140,13 +150,15 @@ def test_targets_by_position(tmp_path):
 @pytest.mark.parametrize("reader", ["fig_twin", "raw_manifest"])  # bookkeeping may not read it either
 def test_twin_truth_read_by_another_rule(tmp_path, reader):
     v = check_records(_run(tmp_path, truth_reader=reader))
-    assert v == [f"separation (records): results/twin/validation.json (rule {reader}) read "
-                 "raw_data/twin_truth.json; docs/design.md 3: only twin_validation reads the simulated rig's ground truth"]
+    assert v == [
+        f"separation (records): results/twin/validation.json (rule {reader}) read "
+        "raw_data/twin_truth.json; docs/design.md 3: only twin_validation reads the simulated rig's ground truth"
+    ]
 
 
 # --- static: a tiny Snakefile, leaks switched on by config -----------------------------------------
 
-SNAKEFILE = '''
+SNAKEFILE = """
 LEAK = config.get("leak", "")
 SHARDS = {"train": ["dynamics_train-00"], "validation": ["dynamics_validation-00"], "sealed": ["dynamics_sealed-00"]}
 if LEAK == "sealed_in_train":
@@ -250,7 +262,7 @@ if LEAK == "validate_named":
     rule validate_sealed_copy:
         input: "results/data/50hz/dynamics_sealed-00.parquet"
         output: "results/raw/sealed_copy.json"
-'''
+"""
 
 
 @pytest.fixture
@@ -268,36 +280,45 @@ def test_dag_clean(wf):
 
 def test_dag_delay_sweep_in_training(wf):
     v = check_dag(wf, config_overrides={"leak": "delay"})
-    assert v == ["separation (DAG): results/dynamics/model.pt (rule dynamics_train) is reachable from delay_sweep "
-                 "shard delay_sweep-00 via resample_shard(shard=delay_sweep-00) > dynamics_train; docs/design.md 3: "
-                 + POLICY["delay_sweep"].rule]
+    assert v == [
+        "separation (DAG): results/dynamics/model.pt (rule dynamics_train) is reachable from delay_sweep "
+        "shard delay_sweep-00 via resample_shard(shard=delay_sweep-00) > dynamics_train; docs/design.md 3: "
+        + POLICY["delay_sweep"].rule
+    ]
 
 
 def test_dag_sealed_shard_in_train_windows(wf):
     v = check_dag(wf, config_overrides={"leak": "sealed_in_train"})
     assert len(v) == 1 and v[0].startswith(
         "separation (DAG): results/splits/windows_train.npz (rule windows(role=train)) is reachable from sealed shard "
-        "dynamics_sealed-00 via resample_shard(shard=dynamics_sealed-00) > windows(role=train)")
+        "dynamics_sealed-00 via resample_shard(shard=dynamics_sealed-00) > windows(role=train)"
+    )
 
 
 def test_dag_twin_truth_read_by_another_rule(wf):
     v = check_dag(wf, config_overrides={"leak": "truth"})
-    assert v == ["separation (DAG): results/dynamics/model.pt (rule dynamics_train) reads raw_data/twin_truth.json; "
-                 "docs/design.md 3: " + POLICY["twin_truth"].rule]
+    assert v == [
+        "separation (DAG): results/dynamics/model.pt (rule dynamics_train) reads raw_data/twin_truth.json; "
+        "docs/design.md 3: " + POLICY["twin_truth"].rule
+    ]
 
 
 def test_dag_evaluation_targets_read_by_the_search(wf):
     v = check_dag(wf, config_overrides={"leak": "evaluation_targets"})
-    assert v == ["separation (DAG): results/policy/runs/shared_seed0.json (rule policy_search) reads "
-                 "results/policy/targets_evaluation.parquet; docs/design.md 3: "
-                 + POLICY["results/policy/targets_evaluation.parquet"].rule]
+    assert v == [
+        "separation (DAG): results/policy/runs/shared_seed0.json (rule policy_search) reads "
+        "results/policy/targets_evaluation.parquet; docs/design.md 3: "
+        + POLICY["results/policy/targets_evaluation.parquet"].rule
+    ]
 
 
 def test_dag_release_targets_read_by_the_offset_fit(wf):
     v = check_dag(wf, config_overrides={"leak": "release_targets"})
-    assert v == ["separation (DAG): results/ablation/offsets.json (rule ablation_offsets) reads "
-                 "results/ablation/targets_release.parquet; docs/design.md 3: "
-                 + POLICY["results/ablation/targets_release.parquet"].rule]
+    assert v == [
+        "separation (DAG): results/ablation/offsets.json (rule ablation_offsets) reads "
+        "results/ablation/targets_release.parquet; docs/design.md 3: "
+        + POLICY["results/ablation/targets_release.parquet"].rule
+    ]
 
 
 def test_dag_release_targets_reach_no_offset_fit():
@@ -327,16 +348,20 @@ def test_records_ablation_targets_disjoint(tmp_path):
 
 def test_records_release_target_in_offset_set(tmp_path):
     v = check_records(_ablation_targets(_run(tmp_path), [1000, 2005], range(2000, 2400)))
-    assert v == ["separation (targets): results/ablation/targets_release.parquet shares 1 target(s) with "
-                 "targets_offset.parquet (first: 2005); docs/design.md 3: training, selection, evaluation, offset "
-                 "and release targets are disjoint (separate seeds)"]
+    assert v == [
+        "separation (targets): results/ablation/targets_release.parquet shares 1 target(s) with "
+        "targets_offset.parquet (first: 2005); docs/design.md 3: training, selection, evaluation, offset "
+        "and release targets are disjoint (separate seeds)"
+    ]
 
 
 def test_records_release_targets_read_by_the_offset_fit(tmp_path):
     v = check_records(_ablation_targets(_run(tmp_path), range(1000, 1100), range(2000, 2400), leak=True))
-    assert v == ["separation (records): results/ablation/offsets.json (rule ablation_offsets) read "
-                 "results/ablation/targets_release.parquet; docs/design.md 3: "
-                 + POLICY["results/ablation/targets_release.parquet"].rule]
+    assert v == [
+        "separation (records): results/ablation/offsets.json (rule ablation_offsets) read "
+        "results/ablation/targets_release.parquet; docs/design.md 3: "
+        + POLICY["results/ablation/targets_release.parquet"].rule
+    ]
 
 
 def test_records_offset_target_in_evaluation_set(tmp_path):
@@ -346,8 +371,10 @@ def test_records_offset_target_in_evaluation_set(tmp_path):
 
 def test_dag_delay_sweep_recording_read_directly(wf):
     v = check_dag(wf, config_overrides={"leak": "direct"})
-    assert v == ["separation (DAG): results/dynamics/model.pt (rule dynamics_train) reads raw delay_sweep group "
-                 "dly_0001; docs/design.md 3: " + POLICY["delay_sweep"].rule]
+    assert v == [
+        "separation (DAG): results/dynamics/model.pt (rule dynamics_train) reads raw delay_sweep group "
+        "dly_0001; docs/design.md 3: " + POLICY["delay_sweep"].rule
+    ]
 
 
 def test_check_both(wf):
@@ -364,9 +391,11 @@ def test_check_both(wf):
 def test_dag_rule_without_policy_entry(wf):
     """A new rule (fine-tuning the model on the delay sweep) is refused because nothing names it."""
     v = check_dag(wf, config_overrides={"leak": "unnamed"})
-    assert v[0] == ("separation (policy): results/dynamics/model_finetuned.pt (rule gru_finetune) is named by no "
-                    "entry of the policy; docs/design.md 3: every rule says what it may be fed "
-                    "(embodied_snap/lineage/policy.py)")
+    assert v[0] == (
+        "separation (policy): results/dynamics/model_finetuned.pt (rule gru_finetune) is named by no "
+        "entry of the policy; docs/design.md 3: every rule says what it may be fed "
+        "(embodied_snap/lineage/policy.py)"
+    )
     assert any("(rule gru_finetune) is reachable from delay_sweep shard delay_sweep-00" in x for x in v), v
 
 
@@ -382,18 +411,23 @@ def test_records_deleted_record_is_a_violation(tmp_path):
     _run(tmp_path)
     (tmp_path / "results/provenance/windows/role=train.json").unlink()
     v = check_records(tmp_path)
-    assert ("separation (records): results/splits/windows_train.npz (read by rule dynamics_train) has no "
-            "provenance record; docs/design.md 3: every result has a readable provenance record") in v
-    assert ("separation (records): results/splits/windows_train.npz has no provenance record; "
-            "docs/design.md 3: every result has a readable provenance record") in v
+    assert (
+        "separation (records): results/splits/windows_train.npz (read by rule dynamics_train) has no "
+        "provenance record; docs/design.md 3: every result has a readable provenance record"
+    ) in v
+    assert (
+        "separation (records): results/splits/windows_train.npz has no provenance record; "
+        "docs/design.md 3: every result has a readable provenance record"
+    ) in v
 
 
 def test_records_unreadable_record_is_a_violation(tmp_path):
     _run(tmp_path)
     (tmp_path / "results/provenance/dynamics_sealed_eval/_.json").write_text("{not json")
     v = check_records(tmp_path)
-    assert v and v[0].startswith("separation (records): results/provenance/dynamics_sealed_eval/_.json cannot "
-                                 "be read (JSONDecodeError")
+    assert v and v[0].startswith(
+        "separation (records): results/provenance/dynamics_sealed_eval/_.json cannot be read (JSONDecodeError"
+    )
 
 
 def test_records_in_another_raw_directory(tmp_path):

@@ -15,6 +15,7 @@ from embodied_snap.twin import sim
 from embodied_snap.twin import truth as TR
 from embodied_snap.twin.acquire import acquire_groups
 from embodied_snap.twin.phenomena import phenomena
+
 from paper_protocol import PROTO
 
 DT = 0.001  # config twin.dt
@@ -112,7 +113,17 @@ def test_meta_keys(raw):
     d, _ = raw
     for gid in GROUPS.group_id:
         _, _, meta = _read(d, gid)
-        for k in ("group_id", "evidence_set", "category", "session", "recorded_at", "base", "axis", "program", "labels"):
+        for k in (
+            "group_id",
+            "evidence_set",
+            "category",
+            "session",
+            "recorded_at",
+            "base",
+            "axis",
+            "program",
+            "labels",
+        ):
             assert k in meta
         assert set(meta["base"]) == {"pos", "quat"}
         if meta["evidence_set"] in ("attachment", "delay_sweep"):
@@ -136,7 +147,9 @@ def test_same_seed_same_bytes_and_group_independence(raw, tmp_path):
     other = tmp_path / "other"
     acquire_groups(pick.iloc[:1], other, seed=SEED + 1, proto=PROTO, dt=DT, progress=False)
     gid = pick.group_id.iloc[0]
-    assert (RF.group_dir(d, gid) / "mocap.parquet").read_bytes() != (RF.group_dir(other, gid) / "mocap.parquet").read_bytes()
+    assert (RF.group_dir(d, gid) / "mocap.parquet").read_bytes() != (
+        RF.group_dir(other, gid) / "mocap.parquet"
+    ).read_bytes()
 
 
 def test_servo_rate_limit():

@@ -68,7 +68,9 @@ def wf(tmp_path_factory):
     d = tmp_path_factory.mktemp("wf")
     for name in COPY:
         src = REPO / name
-        (shutil.copytree if src.is_dir() else shutil.copy2)(src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {}))
+        (shutil.copytree if src.is_dir() else shutil.copy2)(
+            src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
+        )
     snakemake(d, "all")
     return d
 
@@ -112,16 +114,18 @@ def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
     f.chmod(0o644)
     df.to_parquet(f, index=False)
     jobs = dry_jobs(wf, "results/figures")
-    assert jobs == sorted([
-        ("validate_shard", "shard=attachment-00"),
-        ("characterize_attachment", ""),
-        ("fig_limits", ""),
-        ("raw_manifest", ""),
-        ("fig_data_overview", ""),
-        ("table_characterize_claims", ""),
-        ("check_separation", ""),
-        ("figures", ""),
-    ])
+    assert jobs == sorted(
+        [
+            ("validate_shard", "shard=attachment-00"),
+            ("characterize_attachment", ""),
+            ("fig_limits", ""),
+            ("raw_manifest", ""),
+            ("fig_data_overview", ""),
+            ("table_characterize_claims", ""),
+            ("check_separation", ""),
+            ("figures", ""),
+        ]
+    )
     r = run([str(BIN / "esnap"), "audit", "results/figures/fig0_data_overview.pdf"], wf, check=False)
     assert r.returncode == 1 and "stale" in r.stdout.lower()
     snakemake(wf, "all")
@@ -145,8 +149,9 @@ def dry_reasons(cwd, *targets) -> dict[tuple[str, str], str]:
     return jobs
 
 
-@pytest.mark.parametrize("module", ["embodied_snap/twin/protocols.py", "embodied_snap/rawformat.py",
-                                    "embodied_snap/figures/gates.py"])
+@pytest.mark.parametrize(
+    "module", ["embodied_snap/twin/protocols.py", "embodied_snap/rawformat.py", "embodied_snap/figures/gates.py"]
+)
 def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, module):
     """Which rules' scripts load the module is found by Python's import machinery; the dry run must
     rerun exactly those for the edit, and every other job only because an input is rebuilt."""
@@ -174,14 +179,17 @@ def test_an_undeclared_read_of_sealed_windows_fails_the_job(wf):
     is stopped by its own provenance check, with one line, before it vouches for anything."""
     script = wf / "workflow_scripts/dynamics_persistence.py"
     keep, st = script.read_bytes(), script.stat()
-    script.write_bytes(keep.replace(b"load_windows(snakemake.input.validation)",
-                                    b'load_windows("results/splits/windows_sealed.npz")'))
+    script.write_bytes(
+        keep.replace(b"load_windows(snakemake.input.validation)", b'load_windows("results/splits/windows_sealed.npz")')
+    )
     try:
         r = snakemake(wf, "results/dynamics/validation/persistence.json", check=False)
         assert r.returncode != 0
         lines = sorted({ln for ln in (r.stdout + r.stderr).splitlines() if ln.startswith("error:")})
-        assert lines == ["error: results/splits/windows_sealed.npz: read by rule dynamics_persistence but not among "
-                         "its declared inputs (rule: a job reads only what it declares)"]
+        assert lines == [
+            "error: results/splits/windows_sealed.npz: read by rule dynamics_persistence but not among "
+            "its declared inputs (rule: a job reads only what it declares)"
+        ]
         assert not (wf / "results/provenance/dynamics_persistence/_.json").exists()
     finally:
         script.write_bytes(keep)

@@ -4,9 +4,9 @@ Missing records are not reported here (jobs beside this one may be rebuilding th
 
 import sys
 
+from embodied_snap.lineage.checks import check
 from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
-from embodied_snap.lineage.checks import check
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -14,5 +14,8 @@ with tracked(snakemake):
     for v in result["violations"]:
         print(f"leak: {v}", file=sys.stderr)
     if not result["ok"]:
-        sys.exit(f"separation violated: {result['violations'][0]} (+{len(result['violations']) - 1} more, see {snakemake.log[0]})")
+        sys.exit(
+            f"separation violated: {result['violations'][0]} "
+            f"(+{len(result['violations']) - 1} more, see {snakemake.log[0]})"
+        )
     write_json(result, snakemake.output[0])

@@ -6,8 +6,8 @@ import sys
 
 import pandas as pd
 
-from embodied_snap.policy.claims import rows
 from embodied_snap.lineage.records import tracked
+from embodied_snap.policy.claims import rows
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

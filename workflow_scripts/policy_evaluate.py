@@ -4,12 +4,11 @@ import json
 import sys
 
 import numpy as np
-import pandas as pd
 import torch
 
 from embodied_snap.io import read_parquet
-from embodied_snap.policy import search, simulate
 from embodied_snap.lineage.records import tracked
+from embodied_snap.policy import search, simulate
 from embodied_snap.protocol import from_params
 
 sys.stderr = open(snakemake.log[0], "w")

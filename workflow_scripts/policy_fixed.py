@@ -3,12 +3,11 @@
 import sys
 
 import numpy as np
-import pandas as pd
 import torch
 
 from embodied_snap.io import read_parquet
-from embodied_snap.policy import search, simulate
 from embodied_snap.lineage.records import tracked
+from embodied_snap.policy import search, simulate
 from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 

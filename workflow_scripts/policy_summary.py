@@ -6,8 +6,8 @@ import sys
 import pandas as pd
 
 from embodied_snap.io import read_parquet
-from embodied_snap.policy.analysis import summarize
 from embodied_snap.lineage.records import tracked
+from embodied_snap.policy.analysis import summarize
 from embodied_snap.protocol import from_params
 
 sys.stderr = open(snakemake.log[0], "w")

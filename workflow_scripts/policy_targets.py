@@ -3,8 +3,8 @@
 import json
 import sys
 
-from embodied_snap.policy import targets
 from embodied_snap.lineage.records import tracked
+from embodied_snap.policy import targets
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

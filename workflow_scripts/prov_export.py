@@ -2,8 +2,8 @@
 
 import sys
 
-from embodied_snap.lineage.records import tracked
 from embodied_snap.lineage.prov import export
+from embodied_snap.lineage.records import tracked
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

@@ -13,6 +13,7 @@ from sklearn.preprocessing import StandardScaler
 from statsmodels.stats.proportion import proportion_confint
 
 from ..rawformat import RecordingError
+
 LATERAL_M = 0.150
 
 

@@ -39,7 +39,16 @@ def summarize(rows) -> dict:
         ci = [float(x) for x in proportion_confint(k, n, method="wilson")] if n else [float("nan")] * 2
         return dict(attached=k, n=n, fraction=k / n if n else float("nan"), ci95=ci)
 
-    return dict(n=len(r), per_tau=per, best_tau_s=per[best]["tau"], speed_optimal_taus=[min(speed_taus), max(speed_taus)],
-                supported_tau_s=supported, attach_le_030=count(tau <= 0.30 + 1e-9), attach_ge_045=count(tau >= 0.45 - 1e-9),
-                trials=[dict(tau=float(a), v=float(b), closest=float(x["closest_m"]), attached=int(c))
-                        for a, b, c, x in zip(tau, v, att, r)])
+    return dict(
+        n=len(r),
+        per_tau=per,
+        best_tau_s=per[best]["tau"],
+        speed_optimal_taus=[min(speed_taus), max(speed_taus)],
+        supported_tau_s=supported,
+        attach_le_030=count(tau <= 0.30 + 1e-9),
+        attach_ge_045=count(tau >= 0.45 - 1e-9),
+        trials=[
+            dict(tau=float(a), v=float(b), closest=float(x["closest_m"]), attached=int(c))
+            for a, b, c, x in zip(tau, v, att, r)
+        ],
+    )

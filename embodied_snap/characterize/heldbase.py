@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import mocap as M
-from .servo import simulate, goal_on_grid, DT
+from .servo import DT, goal_on_grid, simulate
 
 REF_LAG_S = (0.5, 0.25)  # the reference is the mean over [t - 0.5 s, t - 0.25 s]: causal, slow
 

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..io import read_parquet
-
 from .. import rawformat as RF
+from ..io import read_parquet
 
 
 def group(raw_dir, gid: str) -> tuple[pd.DataFrame, pd.DataFrame, dict]:

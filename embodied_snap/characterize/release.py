@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from statsmodels.stats.proportion import proportion_confint
 
+
 def summarize(rows, ceilings_rad_s, attach_speed_mps: float) -> dict:
     by = {c: np.array([r["v_peak"] for r in rows if r["category"] == c and np.isfinite(r["v_peak"])])
           for c in ("direct", "ramped", "instantaneous")}
@@ -20,13 +21,18 @@ def summarize(rows, ceilings_rad_s, attach_speed_mps: float) -> dict:
         speeds={c: [float(v) for v in x] for c, x in by.items()},
         direct_range_mps=[float(by["direct"].min()), float(by["direct"].max())] if len(by["direct"]) else [np.nan] * 2,
         direct_median_mps=float(np.median(by["direct"])) if len(by["direct"]) else float("nan"),
-        instant_n=int(len(inst)), instant_over_1mps=n_fast,
+        instant_n=int(len(inst)),
+        instant_over_1mps=n_fast,
         instant_fraction_over_1mps=n_fast / len(inst) if len(inst) else float("nan"),
-        instant_fraction_ci95=[float(x) for x in proportion_confint(n_fast, len(inst), method="wilson")] if len(inst) else [np.nan] * 2,
+        instant_fraction_ci95=[float(x) for x in proportion_confint(n_fast, len(inst), method="wilson")]
+        if len(inst)
+        else [np.nan] * 2,
         operating_tip_speed_iqr_mps=q(inst, [25, 75]),
         operating_tip_speed_median_mps=float(np.median(inst)) if len(inst) else float("nan"),
         operating_section_rate_dps=[float(np.degrees(r)) for r in med_rates],
         operating_rate_over_ceiling=[float(r / c) for r, c in zip(med_rates, ceilings_rad_s)],
-        snap_over_direct=float(np.median(inst) / np.median(by["direct"])) if len(inst) and len(by["direct"]) else float("nan"),
+        snap_over_direct=float(np.median(inst) / np.median(by["direct"]))
+        if len(inst) and len(by["direct"])
+        else float("nan"),
         ramped_quantiles_mps=q(by["ramped"], [10, 50, 90]),
     )

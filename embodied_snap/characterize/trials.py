@@ -10,7 +10,6 @@ from . import load
 from . import mocap as M
 
 
-
 def features(mc, meta) -> dict:
     t = mc.t.to_numpy()
     t0 = load.release_start(meta)

@@ -9,7 +9,6 @@ import pandas as pd
 from ..io import read_parquet
 
 
-
 def frames(shards, groups=None) -> pd.DataFrame:
     """50 Hz frames of the given shards, optionally only some groups, sorted by group and time."""
     f = pd.concat([read_parquet(p) for p in shards], ignore_index=True)

@@ -1,6 +1,7 @@
 """Quasi-static hold model (paper IV-A): the pre-release configuration that starts a rollout.
 
-A recorded hold is the state history x_{t-20..t} (the protocol's window history) up to the last frame before the S2 release
+A recorded hold is the state history x_{t-20..t} (the protocol's window history) up to the last
+frame before the S2 release
 (meta label t_s2) of a training-split dynamics group: the preload is set, S3 has been slackened and
 the curled tip has settled, and nothing fast has happened yet. The rollout from there covers the S2
 release, the delay tau and the S1 snap, so tau acts through the commands, as on the rig.
@@ -8,7 +9,8 @@ release, the delay tau and the S1 snap, so tau acts through the commands, as on 
 Each hold is keyed by its program (rho1, rho2, rho3, s3) and stored in the canonical bearing phi0
 (the protocol's, config primitive.phi0_deg): positions and the tip axis are rotated about the
 measured free-hanging axis n by phi0 - bearing, and servo positions are kept as their offsets from
-the goals. A new command (rho, s3) aimed at phi0 + dphi gets the inverse-distance average of the 12 nearest holds in (rho1, rho2, rho3, s3),
+the goals. A new command (rho, s3) aimed at phi0 + dphi gets the inverse-distance average of the 12
+nearest holds in (rho1, rho2, rho3, s3),
 scaled by (1500, 1500, 1500, 1000) ticks with distances floored at 0.01, rotated by dphi, with the
 servo positions put back on its own goals. Support confidence C_h = 0.5 + 0.5 exp(-(d_mean/0.3)^2).
 """
@@ -68,8 +70,8 @@ def bank(frames: pd.DataFrame, metas: dict[str, dict], phi0_deg: float, history:
         i = release_row(t, m["labels"]["t_s2"])
         if i < history:
             continue
-        X = f[STATE_COLUMNS].to_numpy(np.float64)[i - history:i + 1]
-        U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - history:i + 1]
+        X = f[STATE_COLUMNS].to_numpy(np.float64)[i - history : i + 1]
+        U = f[COMMAND_COLUMNS].to_numpy(np.float64)[i - history : i + 1]
         X = rotate_states(X, phi0_deg - float(m["program"]["bearing"]), n)
         X[:, SERVO] -= U
         q.append([m["program"][k] for k in KEYS])

@@ -47,7 +47,14 @@ def plot_gates(persistence: dict, validation: list[dict], gate: dict, dt: float,
     ttau = np.array([t["tau"] for t in tr])
     for ax, meas, pred, scale, ylabel, letter in (
         (axes[1], "v_meas", "v_pred", 1.0, "Peak tip speed (m/s)", "b"),
-        (axes[2], "travel_meas_m", "travel_pred_m", 1e3, f"Tip travel, hold to S1 + {gate['window']['after_s1_s']:g} s (mm)", "c"),
+        (
+            axes[2],
+            "travel_meas_m",
+            "travel_pred_m",
+            1e3,
+            f"Tip travel, hold to S1 + {gate['window']['after_s1_s']:g} s (mm)",
+            "c",
+        ),
     ):
         ax.scatter(ttau, [t[meas] * scale for t in tr], s=6, color=c_meas, lw=0, alpha=0.45)
         ax.plot(tau, [p[meas] * scale for p in per], color=c_meas, lw=1.1, marker="o", ms=2.5, label="Measured")

@@ -4,8 +4,8 @@
 
 from __future__ import annotations
 
-import numpy as np
 import matplotlib.pyplot as plt
+import numpy as np
 
 from ..characterize.attachment import probability
 from . import style

@@ -4,8 +4,8 @@ shaded: the intervals the sweep supports."""
 
 from __future__ import annotations
 
-import numpy as np
 import matplotlib.pyplot as plt
+import numpy as np
 
 from . import style
 

@@ -216,9 +216,12 @@ def unrecorded(root: Path) -> list[str]:
     for f in sorted((root / "results").rglob("*")):
         p = f.relative_to(root).as_posix()
         # Snakemake's marker in a directory output is its own, not a result
-        if f.is_file() and not p.startswith(RECORDS_DIR + "/") and p not in claimed and f.name != ".snakemake_timestamp":
-            out.append(f"separation (records): {p} has no provenance record; {RULE}: every result has "
-                       "a readable provenance record")
+        own = p.startswith(RECORDS_DIR + "/") or f.name == ".snakemake_timestamp"
+        if f.is_file() and not own and p not in claimed:
+            out.append(
+                f"separation (records): {p} has no provenance record; {RULE}: every result has "
+                "a readable provenance record"
+            )
     return out
 
 
@@ -228,8 +231,10 @@ def _split_violations(root: Path, groups: dict) -> list[str]:
         return out
     for g, d in sorted(groups.items()):
         if d["category"] == "sealed" and d["evidence_set"] == "dynamics" and d["role"] in ("train", "validation"):
-            out.append(f"separation (split): {SPLIT_CSV} puts sealed group {g} in {d['role']}; "
-                       f"{RULE}: {P.POLICY['sealed'].rule}")
+            out.append(
+                f"separation (split): {SPLIT_CSV} puts sealed group {g} in {d['role']}; "
+                f"{RULE}: {P.POLICY['sealed'].rule}"
+            )
     return out
 
 
@@ -243,8 +248,10 @@ def _window_violations(root: Path, groups: dict) -> tuple[list[str], int]:
         with np.load(p, allow_pickle=False) as z:
             ids = sorted(set(str(x) for x in z["group_ids"])) if "group_ids" in z else None
         if ids is None:
-            out.append(f"separation (windows): {p.relative_to(root)} has no group_ids array; "
-                       f"{RULE}: the window files must show which groups each model saw")
+            out.append(
+                f"separation (windows): {p.relative_to(root)} has no group_ids array; "
+                f"{RULE}: the window files must show which groups each model saw"
+            )
             continue
         wrong: dict[str, list[str]] = {}  # the role a misplaced group really has -> groups
         for g in ids:
@@ -257,8 +264,10 @@ def _window_violations(root: Path, groups: dict) -> tuple[list[str], int]:
         for have, gs in sorted(wrong.items()):
             rule_of = P.POLICY[have].rule if have in P.POLICY else "windows of a role hold only groups of that role"
             more = f" (+{len(gs) - 1} more)" if len(gs) > 1 else ""
-            out.append(f"separation (windows): {p.relative_to(root)} holds group {gs[0]}{more} of role "
-                       f"{have} ({SPLIT_CSV}); {RULE}: {rule_of}")
+            out.append(
+                f"separation (windows): {p.relative_to(root)} holds group {gs[0]}{more} of role "
+                f"{have} ({SPLIT_CSV}); {RULE}: {rule_of}"
+            )
     return out, n
 
 
@@ -275,13 +284,15 @@ def _target_violations(root: Path) -> tuple[list[str], int]:
     out = []
     names = sorted(sets)
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             common = sets[a] & sets[b]
             if common:
-                out.append(f"separation (targets): {b} shares {len(common)} target(s) with "
-                           f"{Path(a).name} (first: {sorted(common)[0]}); "
-                           f"{RULE}: training, selection, evaluation, offset and release targets are disjoint "
-                           "(separate seeds)")
+                out.append(
+                    f"separation (targets): {b} shares {len(common)} target(s) with "
+                    f"{Path(a).name} (first: {sorted(common)[0]}); "
+                    f"{RULE}: training, selection, evaluation, offset and release targets are disjoint "
+                    "(separate seeds)"
+                )
     return out, len(sets)
 
 
@@ -301,15 +312,14 @@ def check_records(root=".", raw: str = DEFAULT_RAW, complete: bool = True) -> li
     return _records_check(Path(root), raw, complete)[0]
 
 
-def check_dag(workdir=".", configfiles=None, config_overrides: dict | None = None,
-              targets=("all",)) -> list[str]:
+def check_dag(workdir=".", configfiles=None, config_overrides: dict | None = None, targets=("all",)) -> list[str]:
     raw = raw_dir_of(config_overrides)
-    return dag_violations(build_dag(workdir, configfiles, config_overrides, targets),
-                          load_groups(workdir, raw), raw)[0]
+    return dag_violations(build_dag(workdir, configfiles, config_overrides, targets), load_groups(workdir, raw), raw)[0]
 
 
-def check(root=".", static=True, records=True, config_overrides: dict | None = None, complete: bool = True,
-          **dag_kwargs) -> dict:
+def check(
+    root=".", static=True, records=True, config_overrides: dict | None = None, complete: bool = True, **dag_kwargs
+) -> dict:
     """Both proofs, for the config `config_overrides` (default: the one the last run recorded);
     a DAG that cannot be built is a failed proof, not a pass. `complete`: the run has finished, so
     every result file and every result a record used must have a record of its own (off inside the

@@ -308,23 +308,35 @@ def summarize(runs: list[dict], evals: pd.DataFrame, fixed: pd.DataFrame, tolera
         d_f_m=float(d_f),
         v_min_sim_mps=float(v_min),
         n_params={a: int(next(r["n_params"] for r in runs if r["arch"] == a)) for a in archs},
-        evaluations_per_generation={a: int(next(r["evaluations_per_generation"] for r in runs if r["arch"] == a))
-                                    for a in archs},
+        evaluations_per_generation={
+            a: int(next(r["evaluations_per_generation"] for r in runs if r["arch"] == a)) for a in archs
+        },
         seeds={a: [int(x) for x in finals[a]] for a in archs},
-        reward={a: dict(_mean_sd(list(finals[a].values())), per_seed={str(k): v for k, v in finals[a].items()})
-                for a in archs},
+        reward={
+            a: dict(_mean_sd(list(finals[a].values())), per_seed={str(k): v for k, v in finals[a].items()})
+            for a in archs
+        },
         reward_tests={a: mann_whitney(shared_r, list(finals[a].values())) for a in other},
         curves=curve_bands(runs),
         attachment_sweep=dict(tolerances_m=tolerances, archs=sweep),
         attachment_report=attach_report,
         attachment_tests={a: mann_whitney(shared_a, list(at_report.get(a, {}).values())) for a in other},
         attachment_tests_sweep={  # shared vs matched centralised at every tolerance
-            f"{r:g}": mann_whitney(rates[(rates.arch == "shared") & (rates.tolerance_m == r)].rate,
-                                   rates[(rates.arch == MATCHED) & (rates.tolerance_m == r)].rate)
-            for r in tolerances},
+            f"{r:g}": mann_whitney(
+                rates[(rates.arch == "shared") & (rates.tolerance_m == r)].rate,
+                rates[(rates.arch == MATCHED) & (rates.tolerance_m == r)].rate,
+            )
+            for r in tolerances
+        },
         reach=reach(runs, budget_evaluations) if MATCHED in finals else None,
-        selected=dict(arch="shared", seed=sel, selection_reward=sel_reward,
-                      **policy_stats(s, report_m, d_f, v_min, detail=True, timing_s=timing_s)) if sel is not None else None,
+        selected=dict(
+            arch="shared",
+            seed=sel,
+            selection_reward=sel_reward,
+            **policy_stats(s, report_m, d_f, v_min, detail=True, timing_s=timing_s),
+        )
+        if sel is not None
+        else None,
         fixed=policy_stats(fixed, report_m, d_f, v_min),
         best_centralised=dict(seed=None if best_c[0] is None else int(best_c[0]), attachment=best_c[1]),
     )

@@ -85,10 +85,24 @@ def draw_program(row: dict, r: np.random.Generator, proto: Protocol) -> dict:
     op = P.OPERATING
     jit = lambda s: {k: float(op[k] + r.normal(0, s)) for k in ("rho1", "rho2", "rho3")}  # noqa: E731
     if es == "servo_calibration":
-        return dict(kind="burst", section=int(r.integers(1, 4)), bearing=float(r.uniform(0, 360)), amplitude=float(r.uniform(400, 3000)))
+        return dict(
+            kind="burst",
+            section=int(r.integers(1, 4)),
+            bearing=float(r.uniform(0, 360)),
+            amplitude=float(r.uniform(400, 3000)),
+        )
     if es == "release_mode" and cat == "direct":
         # shallow tip curl (below the fold angle): a purely tendon-driven release
-        return dict(kind="direct", rho1=float(r.uniform(2600, 3000)), rho2=float(r.uniform(2200, 2600)), rho3=float(r.uniform(650, 1000)), s3=0.0, dphi=0.0, tau=0.0, bearing=float(r.uniform(190, 230)))
+        return dict(
+            kind="direct",
+            rho1=float(r.uniform(2600, 3000)),
+            rho2=float(r.uniform(2200, 2600)),
+            rho3=float(r.uniform(650, 1000)),
+            s3=0.0,
+            dphi=0.0,
+            tau=0.0,
+            bearing=float(r.uniform(190, 230)),
+        )
     prog = dict(kind="primitive", s3=float(op["s3"]), dphi=0.0, tau=float(op["tau"]), **jit(60.0))
     if es == "release_mode":
         prog.update(jit(120.0), tau=_uniform(r, box["tau"]))  # the timing set
@@ -200,8 +214,9 @@ def _recorded_at(gid: str, session: str) -> str:
     return (T0 + _dt.timedelta(days=day, seconds=90 * k)).isoformat()
 
 
-def acquire_groups(groups: "pd.DataFrame", raw_dir: str | Path, seed: int, proto: Protocol, dt: float,
-                   progress: bool = True) -> list[dict]:
+def acquire_groups(
+    groups: "pd.DataFrame", raw_dir: str | Path, seed: int, proto: Protocol, dt: float, progress: bool = True
+) -> list[dict]:
     """Simulate and write each group (rows: group_id, evidence_set, category, session; extra
     columns ignored) via rawformat.write_group under the protocol `proto` (its primitive, rig and
     thresholds sections), integrated at dt (config twin.dt). Returns one index row per group."""

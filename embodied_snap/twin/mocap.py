@@ -3,7 +3,8 @@
 Mocap: 240 Hz from the physics steps (positions interpolated linearly, orientations by nlerp),
 mapped into the lab by the session's calibration (base position and a small rotation), with
 sub-millimetre noise and short dropouts (`*_valid` false, pose NaN).
-Servo log: one sync-read about every 10 ms with jittered timestamps: goal (int), present (int) and current (mA, from cable tension).
+Servo log: one sync-read about every 10 ms with jittered timestamps: goal (int), present (int) and
+current (mA, from cable tension).
 """
 
 from __future__ import annotations
@@ -11,10 +12,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..rawformat import BODIES, MOCAP_HZ, mocap_columns, servo_columns
 from ..quat import from_rotvec as quat_from_rotvec
 from ..quat import qmul
 from ..quat import to_matrix as quat_to_mat
+from ..rawformat import BODIES, MOCAP_HZ, mocap_columns, servo_columns
 from . import servo as SV
 
 POS_NOISE_M = 0.0003  # 0.3 mm per axis
@@ -46,7 +47,10 @@ def mocap_frame(trial, calib: dict, target: dict | None, rng: np.random.Generato
     for j, b in enumerate(("s1", "s2", "tip")):
         poses[b] = (pos[:, j] @ R.T + B, qmul(qB[None], quat[:, j]))
     if target is not None:
-        poses["target"] = (np.tile(np.asarray(target["pos"]) @ R.T + B, (n, 1)), np.tile(qmul(qB, target["quat"]), (n, 1)))
+        poses["target"] = (
+            np.tile(np.asarray(target["pos"]) @ R.T + B, (n, 1)),
+            np.tile(qmul(qB, target["quat"]), (n, 1)),
+        )
     cols = {"t": t}
     for b in BODIES:
         if b not in poses:

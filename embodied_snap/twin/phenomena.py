@@ -18,9 +18,9 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
-from ..io import read_parquet
 from ..characterize.load import release_start
 from ..characterize.mocap import peak, section_rates, tip_speed
+from ..io import read_parquet
 from ..protocol import Protocol
 
 PAPER_LEVER = (2351.0, 1411.0, 1390.0)  # d_p/k of the paper's arm: its Eq. 2 ceilings
@@ -42,7 +42,14 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> d
         mc = read_parquet(p["mocap"])
         t, t0 = mc.t.to_numpy(), release_start(meta) - LEAD_S
         v, _ = peak(tip_speed(mc), t, t0)
-        rec = dict(group_id=row.group_id, es=row.evidence_set, cat=row.category, v=v, tau=meta["program"].get("tau"), attached=meta["labels"].get("attached"))
+        rec = dict(
+            group_id=row.group_id,
+            es=row.evidence_set,
+            cat=row.category,
+            v=v,
+            tau=meta["program"].get("tau"),
+            attached=meta["labels"].get("attached"),
+        )
         if row.evidence_set == "delay_sweep":
             rec["rates"] = [peak(w, t, t0)[0] for w in section_rates(mc).T]
         rows.append(rec)
@@ -61,7 +68,9 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> d
     out["instant_release_fraction_over_1mps"] = float((inst > v_attach).mean()) if len(inst) else None
     out["n_instantaneous"] = int(len(inst))
     ramp = d.v[rel & (d.cat == "ramped")].dropna()
-    out["ramped_tip_speed_mps_quantiles"] = [float(x) for x in np.quantile(ramp, [0.1, 0.5, 0.9])] if len(ramp) else None
+    out["ramped_tip_speed_mps_quantiles"] = (
+        [float(x) for x in np.quantile(ramp, [0.1, 0.5, 0.9])] if len(ramp) else None
+    )
     sw = d[d.es == "delay_sweep"]
     if len(sw):
         op = sw[(sw.tau >= timing[0] - 1e-9) & (sw.tau <= timing[1] + 1e-9)]

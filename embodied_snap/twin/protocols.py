@@ -104,7 +104,9 @@ def direct_release(p: dict, bearing: float, dt: float, proto: Protocol, sync: bo
     rel = t >= t_r
     a = np.clip(1.0 - (t[rel] - t_r) / T_rel, 0.0, 1.0) if sync else np.zeros(rel.sum())
     # pull side to rest; antagonists stay paid out
-    goals[rel] = np.minimum(W[None, :] * a[:, None], np.minimum(W, 0.0)[None, :] + np.maximum(W, 0.0)[None, :] * a[:, None])
+    goals[rel] = np.minimum(
+        W[None, :] * a[:, None], np.minimum(W, 0.0)[None, :] + np.maximum(W, 0.0)[None, :] * a[:, None]
+    )
     return goals, dict(t_preload=T_HANG, t_release=t_r)
 
 
