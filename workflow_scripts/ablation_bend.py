@@ -1,7 +1,6 @@
 """Bend-point propagation: the selected policy's simulated successes on the evaluation targets and
 the simulated rig's recorded strikes (training groups), by the same estimate."""
 
-import json
 import sys
 
 import numpy as np
@@ -9,26 +8,23 @@ import pandas as pd
 import torch
 
 from embodied_snap.ablation import bend, kinematics
-from embodied_snap.ablation.rollouts import rollout, selected_run
+from embodied_snap.ablation.rollouts import rollout, selected_actions
 from embodied_snap.dynamics import data
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
 from embodied_snap.policy.analysis import REPORT_TOL_M
 from embodied_snap.policy.reward import attached
-from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     P, I = snakemake.params, snakemake.input
-    sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m,
-                                  from_params(P.protocol))
+    sim, ws = simulate.for_job(I, P)
     n = np.asarray(ws["hanging_axis"])
-    run = selected_run([json.load(open(f)) for f in I.runs])
     T = search.Targets(read_parquet(I.evaluation), ws)
-    act = search.policy_actions("shared", np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])
+    run, act = selected_actions(I.runs, T, P.policy["ranges"])
     out = rollout(sim, act, T.p, T.normal, states=True)
     R = P.policy["reward"]
     ok = attached(out["lateral_m"], out["gap_m"], out["v_pk_mps"], REPORT_TOL_M, R["d_f_m"], R["v_min_sim_mps"])

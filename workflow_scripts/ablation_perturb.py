@@ -8,24 +8,21 @@ import numpy as np
 import torch
 
 from embodied_snap.ablation import perturb
-from embodied_snap.ablation.rollouts import selected_run
+from embodied_snap.ablation.rollouts import selected_actions
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
-from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     P, I = snakemake.params, snakemake.input
-    sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m,
-                                  from_params(P.protocol))
-    run = selected_run([json.load(open(f)) for f in I.runs])
+    sim, ws = simulate.for_job(I, P)
     H = json.load(open(I.hold))
     arm_mm = H["tip_mm_median"] / H["tip_pct_arm_median"] * 100  # the arm length hold.json reports against
     T = search.Targets(read_parquet(I.evaluation), ws)
-    act = search.policy_actions("shared", np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])
+    run, act = selected_actions(I.runs, T, P.policy["ranges"])
     rows = perturb.sweep(sim, act, T, P.scales, P.draws, H["tip_mm_median"], H["axis_deg_median"],
                          np.asarray(ws["hanging_axis"]), P.seed, arm_mm)
     for r in rows:

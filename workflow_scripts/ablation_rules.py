@@ -4,26 +4,22 @@ offset fit): one row per rule and target."""
 import json
 import sys
 
-import numpy as np
 import torch
 
 from embodied_snap.ablation import release
-from embodied_snap.ablation.rollouts import rule_clock, selected_run
+from embodied_snap.ablation.rollouts import rule_clock, selected_actions
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
-from embodied_snap.protocol import from_params
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     P, I = snakemake.params, snakemake.input
-    sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m,
-                                  from_params(P.protocol))
-    run = selected_run([json.load(open(f)) for f in I.runs])
+    sim, ws = simulate.for_job(I, P)
     offsets = json.load(open(I.offsets))["rules"]
     T = search.Targets(read_parquet(I.release), ws)
-    act = search.policy_actions("shared", np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])
+    run, act = selected_actions(I.runs, T, P.policy["ranges"])
     proto = rule_clock(sim, P.triggers, ws["hanging_axis"])
     t_e = release.events(sim, act, T, proto)
     steps, tab = release.table(sim, act, T, proto)

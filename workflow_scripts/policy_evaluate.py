@@ -9,14 +9,12 @@ import torch
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
-from embodied_snap.protocol import from_params
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     P, I = snakemake.params, snakemake.input
-    sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m,
-                                  from_params(P.protocol))
+    sim, ws = simulate.for_job(I, P)
     run = json.load(open(I.run))
     T = search.Targets(read_parquet(I.evaluation), ws)
     act = search.policy_actions(run["arch"], np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])

@@ -7,15 +7,13 @@ import torch
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
-from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     torch.set_num_threads(snakemake.threads)
     P, I = snakemake.params, snakemake.input
-    sim, ws = simulate.from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m,
-                                  from_params(P.protocol))
+    sim, ws = simulate.for_job(I, P)
     tr = read_parquet(I.training)
     train = search.Targets(tr, ws)
     run = search.cmaes(sim, P.arch, P.seed, train, tr["generation"].to_numpy(),

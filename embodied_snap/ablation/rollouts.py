@@ -7,12 +7,15 @@ arm state (s1, s2, tip, axis) comes back for the kinematic analyses.
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from .. import bearing as BR
 from ..dynamics import hold
 from ..dynamics.model import AXIS, TIP
 from ..policy import reward as RW
+from ..policy import search
 from ..policy.analysis import selected_seed
 from ..primitive import release_goals
 from .triggers import release_step
@@ -101,6 +104,12 @@ def perturbation(rng, n: int, pos_m: float, axis_deg: float, hanging_axis) -> ca
         return xs.astype(np.float32)
 
     return apply
+
+
+def selected_actions(run_files, T, ranges: dict) -> tuple[dict, dict]:
+    """The selected shared policy's run (from its CMA-ES run files) and its commands for targets T."""
+    run = selected_run([json.load(open(f)) for f in run_files])
+    return run, search.policy_actions("shared", np.asarray(run["theta"]), T, run["norm"], ranges)
 
 
 def selected_run(runs: list[dict]) -> dict:

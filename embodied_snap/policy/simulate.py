@@ -20,7 +20,7 @@ from ..dynamics import hold
 from ..dynamics.model import AXIS, TIP
 from ..dynamics.rollout import Ensemble
 from ..primitive import release_goals
-from ..protocol import Protocol
+from ..protocol import Protocol, from_params
 from . import reward as RW
 from .actions import project_timing, workspace_clamp
 
@@ -69,3 +69,11 @@ def from_files(models, bank_path, snap_path, workspace_path, cfg: dict, after_s1
         bank = {k: z[k] for k in ("q", "x", "n")}
     ws = json.load(open(workspace_path))
     return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, cfg, after_s1, ee_m, proto), ws
+
+
+def for_job(inputs, params, device=None):
+    """The simulator of a workflow job whose rule takes SIMULATOR inputs and SIM_PARAMS params
+    (rules/policy.smk): the ensemble, hold bank, P_snap, workspace, config policy and protocol."""
+    I, P = inputs, params
+    return from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m, from_params(P.protocol),
+                      device)
