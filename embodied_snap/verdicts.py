@@ -59,15 +59,15 @@ class Verdicts:
             write_json({"version": self.version, "passed": self.passed}, self.path)
 
 
-def index_rows(raw_dir, plan, pattern: str) -> dict:
-    """What each group must agree with: its index.csv row, or (simulated rig, before its
+def index_rows(raw_dir, plan, pattern: str, use_index: bool = True) -> dict:
+    """What each group must agree with: its index.csv row, or (use_index False, or before its
     index.csv is written) its plan row."""
     from .validate import read_index
 
     rows = {
         r["group_id"]: r for r in plan[["group_id", "evidence_set", "category", "session"]].to_dict("records")
     }
-    if (Path(raw_dir) / "index.csv").exists():
+    if use_index and (Path(raw_dir) / "index.csv").exists():
         rows.update({r["group_id"]: r for r in read_index(raw_dir, pattern).to_dict("records")})
     return rows
 
