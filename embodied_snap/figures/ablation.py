@@ -48,7 +48,7 @@ def plot_ablation(s: dict, pdf: str, png: str) -> None:
         note = f"{R[r]['at_bound_fraction']:.0%}"
         if "mcnemar" in R[r]:
             note += "\n" + _p(R[r]["mcnemar"]["p"])
-        ax.text(i, min(hi + 0.02, 1.0), note, ha="center", va="bottom", fontsize=6)
+        ax.text(i, min(hi + 0.02, 1.0), note, ha="center", va="bottom", fontsize=6)  # label just above the bar
     ax.set_xticks(range(len(RULES)), [NAMES[r] for r in RULES], rotation=35, ha="right")
     ax.set_ylim(0, 1.2)
     ax.set_yticks(np.linspace(0, 1, 6))
