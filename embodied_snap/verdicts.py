@@ -40,7 +40,7 @@ class Verdicts:
 
     def _key(self, gid: str) -> str | None:
         try:
-            st = [(p.stat().st_size, p.stat().st_mtime_ns) for p in group_paths(self.raw, gid).values()]
+            st = [(s.st_size, s.st_mtime_ns) for s in (p.stat() for p in group_paths(self.raw, gid).values())]
         except (OSError, ValueError):
             return None  # missing or outside the raw directory: the gate says which
         return hashlib.sha256(json.dumps([self.rows.get(gid), st], default=str).encode()).hexdigest()

@@ -61,9 +61,9 @@ def audit(result: str, root=".", config: dict | None = None) -> dict:
     """`config`: the run's config (default: the one the last run recorded), for the raw directory."""
     t0 = time.perf_counter()
     root = Path(root)
-    raw = raw_dir_of(config if config is not None else last_config(root))
-    result = _norm(result, root)
     records = load_records(root)
+    raw = raw_dir_of(config if config is not None else last_config(root, records))
+    result = _norm(result, root)
     starts = [result] if result in records else sorted(p for p in records if p.startswith(result + "/"))
     groups_idx = load_groups(root, raw)
     disk = _Disk(root)

@@ -38,11 +38,12 @@ def _time(s):
 def build(root=".", raw: str | None = None) -> ProvDocument:
     """The PROV document of the recorded run; `raw`: the raw directory (default: the last run's)."""
     root = Path(root)
-    raw = raw or raw_dir_of(last_config(root))
+    loaded = load_records(root)
+    raw = raw or raw_dir_of(last_config(root, loaded))
     doc = ProvDocument()
     ns = {k: doc.add_namespace(k, uri) for k, uri in NAMESPACES.items()}
     code_t = ns["esnap"]["Code"]  # a qualified name, not the string "esnap:Code"
-    records = {r["_record"]: r for r in load_records(root).values()}
+    records = {r["_record"]: r for r in loaded.values()}
     entities: dict[str, object] = {}
 
     def entity(e: dict, code=False):

@@ -360,10 +360,11 @@ def load_records(root=".", errors: list | None = None) -> dict[str, dict]:
     return out
 
 
-def last_config(root=".") -> dict | None:
-    """The config of the most recently finished recorded job (the last run's), or None."""
+def last_config(root=".", records: dict | None = None) -> dict | None:
+    """The config of the most recently finished recorded job (the last run's), or None.
+    `records`: load_records(root), when the caller has them already."""
     root = Path(root)
-    recs = [r for r in load_records(root).values() if r.get("config_sha256")]
+    recs = [r for r in (records if records is not None else load_records(root)).values() if r.get("config_sha256")]
     if not recs:
         return None
     last = max(recs, key=lambda r: r.get("finished", ""))
