@@ -35,7 +35,8 @@ def main() -> None:
     nominal_strike(a.dt, proto)  # once per process; not counted per group
     with tempfile.TemporaryDirectory() as d:
         t0 = time.perf_counter()
-        rows = acquire_groups(pick, d, seed=cfg["seed"], proto=proto, dt=a.dt, progress=False)
+        hold = cfg["twin"]["held_base"]
+        rows = acquire_groups(pick, d, seed=cfg["seed"], proto=proto, dt=a.dt, hold=hold, progress=False)
         wall = time.perf_counter() - t0
         sim_s = 0.0
         per_cat = {}
