@@ -266,3 +266,18 @@ def test_held_base_force_moves_the_mount_and_shows_in_the_residual():
     # the servo-position residual (loaded minus unloaded) changes during the event
     dres = np.abs((held.present - quiet.present)[:, :3]).max(1)
     assert dres[before].max() == 0.0 and dres.max() > 0.3  # a fraction of a tick to ticks: the stiff loop
+
+
+def test_ramped_release_latches_when_fast_and_is_dragged_when_slow():
+    """Fig. 2b: a release ramped over 1 s still latches the fold and snaps; over 6 s the curl opens
+    too slowly to hook, nothing latches and the servos drag the arm open below 1 m/s."""
+    dt = 0.001
+    out = {}
+    for ramp in (1.0, 6.0):
+        goals, times = P.primitive(dict(P.OPERATING, tau=0.55), PROTO.primitive.phi0_deg, dt, PROTO, ramp_s=ramp)
+        shaft = SV.present_from_goal(goals, dt, np.full(9, 3000.0), np.full(9, 0.03))
+        tr = sim.run(dict(M.NOMINAL), shaft, dt, TR.LATCH)
+        v = np.linalg.norm(np.diff(tr.pos[:, 2], axis=0), axis=1) / dt
+        out[ramp] = (tr.events["latch_on"] is not None, np.convolve(v, np.ones(8) / 8, "same").max())
+    assert out[1.0][0] and out[1.0][1] > PROTO.thresholds.attach_speed_mps
+    assert not out[6.0][0] and out[6.0][1] < PROTO.thresholds.attach_speed_mps
