@@ -22,8 +22,8 @@ def _acquire(args):
     from .protocol import from_params
     from .twin.acquire import acquire_groups
 
-    part, raw, seed, proto, dt = args
-    return acquire_groups(part, raw, seed=seed, proto=from_params(proto), dt=dt, progress=False)
+    part, raw, seed, proto, dt, hold = args
+    return acquire_groups(part, raw, seed=seed, proto=from_params(proto), dt=dt, hold=hold, progress=False)
 
 
 def cmd_twin(a) -> int:
@@ -49,7 +49,8 @@ def cmd_twin(a) -> int:
     t0 = time.perf_counter()
     # Every group's randomness comes from (seed, group_id) alone, so any partition gives the same bytes.
     proto = protocol.params(cfg, "primitive", "rig", "thresholds")
-    parts = [(plan.iloc[k :: a.jobs], raw, cfg["seed"], proto, cfg["twin"]["dt"]) for k in range(a.jobs)]
+    tw = cfg["twin"]
+    parts = [(plan.iloc[k :: a.jobs], raw, cfg["seed"], proto, tw["dt"], tw["held_base"]) for k in range(a.jobs)]
     with Pool(a.jobs) as pool:
         rows = [r for part in pool.map(_acquire, parts) for r in part]
     write_index(rows, raw / "index.csv")

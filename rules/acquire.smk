@@ -20,6 +20,7 @@ checkpoint twin_acquire:
         seed=config["seed"],
         protocol=protocol_params("primitive", "rig", "thresholds"),
         dt=config["twin"]["dt"],
+        hold=config["twin"]["held_base"],
     script:
         "../workflow_scripts/twin_acquire.py"
 

@@ -78,7 +78,7 @@ rule characterize_release:
         groups=select(evidence_set="release_mode")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
-        protocol=protocol_params("thresholds"),
+        protocol=protocol_params("rig", "thresholds"),
     script:
         "../workflow_scripts/characterize_release.py"
 
@@ -102,7 +102,7 @@ rule characterize_attachment:
         groups=select(evidence_set="attachment")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
-        protocol=protocol_params("thresholds"),
+        protocol=protocol_params("rig", "thresholds"),
     script:
         "../workflow_scripts/characterize_attachment.py"
 
@@ -127,7 +127,7 @@ rule characterize_snap:
         groups=select(**SNAP_GROUPS)[["group_id", "category", "session"]].to_dict(
             "records"
         ),
-        protocol=protocol_params("thresholds"),
+        protocol=protocol_params("rig", "thresholds"),
     script:
         "../workflow_scripts/characterize_snap.py"
 
@@ -149,6 +149,7 @@ rule characterize_delay_sweep:
         groups=select(evidence_set="delay_sweep")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
+        protocol=protocol_params("rig"),
     script:
         "../workflow_scripts/characterize_delay_sweep.py"
 

@@ -117,6 +117,7 @@ def test_release_summary():
     out = release.summarize(rows, [1.0, 2.0, 3.0], 1.0)
     assert out["direct_range_mps"] == [0.7, 0.75]
     assert out["instant_fraction_over_1mps"] == 0.75
+    assert (out["ramped_fast_n"], out["ramped_slow_n"]) == (1, 1)  # split at the 1 m/s threshold
     assert out["operating_rate_over_ceiling"] == pytest.approx([2.0, 2.0, 2.0])
     assert out["operating_section_rate_dps"][0] == pytest.approx(np.degrees(2.0))
     lo, hi = out["instant_fraction_ci95"]
@@ -184,13 +185,15 @@ def test_delay_sweep_summary():
     rows = []
     for tau, v in speed.items():
         for k in range(3):
-            rows.append(dict(tau=tau, v_peak=v + 0.001 * k, closest_m=0.1, attached=tau >= 0.45 and tau <= 0.65))
+            att = tau >= 0.45 and tau <= 0.65
+            rows.append(dict(tau=tau, v_peak=v + 0.001 * k, closest_m=0.01 if att else 0.1, attached=att))
     out = delay.summarize(rows)
     assert out["best_tau_s"] == 0.55
     assert out["speed_optimal_taus"] == [0.5, 0.6]  # within 3 % of 1.6
     assert out["supported_tau_s"] == [0.45, 0.65]
     assert out["attach_le_030"]["attached"] == 0 and out["attach_le_030"]["n"] == 6
     assert out["attach_ge_045"]["n"] == 18 and out["attach_ge_045"]["attached"] == 15
+    assert out["closest_attached_median_m"] == 0.01  # Fig. 3c: the attached trials only
 
 
 # --- held-base detectors --------------------------------------------------------------------------
@@ -240,11 +243,12 @@ def test_every_reference_claim_has_a_value_and_paper_values_come_from_the_refere
                       rated_tick_s=3140.0, ceiling_rad_s=[1.0, 2.0, 3.0]),
         "release": dict(direct_range_mps=[0.7, 0.8], instant_fraction_over_1mps=1.0, instant_n=3,
                         operating_tip_speed_iqr_mps=[1.5, 1.6], operating_section_rate_dps=[1.0, 2.0, 3.0],
-                        operating_rate_over_ceiling=[1.0, 2.0, 3.0]),
+                        operating_rate_over_ceiling=[1.0, 2.0, 3.0], ramped_fast_n=2, ramped_slow_n=1),
         "attachment": dict(attached_below_1mps=0, n=5, near_fast_fraction=0.9, near_fast_n=4, auc_grouped_cv=0.7),
         "snap": dict(auc_grouped_cv=float("nan"), fraction_box_p_gt_0p8=0.3),
         "delay_sweep": dict(speed_optimal_taus=[0.5, 0.6], attach_le_030=dict(fraction=0.0),
-                            attach_ge_045=dict(fraction=1.0), n=9, supported_tau_s=[0.45, 0.7]),
+                            attach_ge_045=dict(fraction=1.0), n=9, supported_tau_s=[0.45, 0.7],
+                            closest_attached_median_m=0.012),
         "heldbase": dict(fraction_within=dict(base=0.7, clock=0.5, residual=0.6, neighbour=0.6),
                          residual_trigger_ticks=12.0, residual_quiet_ticks=3.0, n=4),
     }
@@ -252,3 +256,4 @@ def test_every_reference_claim_has_a_value_and_paper_values_come_from_the_refere
     assert out["lever_ratio_s1"]["paper"] == str(ref["lever_ratio_s1"]["paper"])
     assert out["snap_auc"]["ours"] == ""  # NaN stays visible as missing, never a number
     assert out["direct_release_range_mps"]["ours"] == "[0.7, 0.8]"
+    assert out["delay_closest_attached_mm"]["ours"] == "12" and out["ramped_slow_n"]["ours"] == "1"

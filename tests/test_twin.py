@@ -16,7 +16,7 @@ from embodied_snap.twin import truth as TR
 from embodied_snap.twin.acquire import acquire_groups
 from embodied_snap.twin.phenomena import phenomena
 
-from paper_protocol import PROTO
+from paper_protocol import HOLD, PROTO
 
 DT = 0.001  # config twin.dt
 
@@ -40,7 +40,7 @@ GROUPS = pd.DataFrame(
 @pytest.fixture(scope="module")
 def raw(tmp_path_factory):
     d = tmp_path_factory.mktemp("raw")
-    rows = acquire_groups(GROUPS, d, seed=SEED, proto=PROTO, dt=DT, progress=False)
+    rows = acquire_groups(GROUPS, d, seed=SEED, proto=PROTO, dt=DT, hold=HOLD, progress=False)
     return d, rows
 
 
@@ -138,14 +138,14 @@ def test_same_seed_same_bytes_and_group_independence(raw, tmp_path):
     d, _ = raw
     pick = GROUPS[GROUPS.group_id.isin(["dly_0004", "rel_0037"])]
     # alone, in another order and another directory: identical files
-    acquire_groups(pick.iloc[::-1], tmp_path, seed=SEED, proto=PROTO, dt=DT, progress=False)
+    acquire_groups(pick.iloc[::-1], tmp_path, seed=SEED, proto=PROTO, dt=DT, hold=HOLD, progress=False)
     for gid in pick.group_id:
         for name in RF.GROUP_FILES:
             a = (RF.group_dir(d, gid) / name).read_bytes()
             b = (RF.group_dir(tmp_path, gid) / name).read_bytes()
             assert a == b, (gid, name)
     other = tmp_path / "other"
-    acquire_groups(pick.iloc[:1], other, seed=SEED + 1, proto=PROTO, dt=DT, progress=False)
+    acquire_groups(pick.iloc[:1], other, seed=SEED + 1, proto=PROTO, dt=DT, hold=HOLD, progress=False)
     gid = pick.group_id.iloc[0]
     assert (RF.group_dir(d, gid) / "mocap.parquet").read_bytes() != (
         RF.group_dir(other, gid) / "mocap.parquet"
@@ -186,6 +186,7 @@ def test_cables_only_pull():
     pres = SV.present_from_goal(goals, dt, np.full(9, 3000.0), np.full(9, 0.03))
     tr = sim.run(dict(M.NOMINAL), pres, dt, TR.LATCH)
     assert tr.tension.min() >= 0.0
+    assert np.all(tr.present <= pres + 1e-9)  # the load only ever deflects a loop toward paying out
     assert tr.tension.max() > 5.0  # they do pull
     # antagonists are paid out: slack (zero tension) while the arm is bent
     i = int((times["t_slack"] - 0.1) / dt)
@@ -219,3 +220,64 @@ def test_phenomena_keys(raw):
     ):
         assert k in ph
     assert len(ph["snap_section_rate_ratio"]) == 3
+
+
+def test_servo_loop_deflects_with_tension():
+    """The position loop gives way under the cable's load: the deflection grows with the tension
+    (T r / K_LOOP), saturates at the stall torque, and in the physics loop the present position is
+    the unloaded response minus it."""
+    T = np.array([0.0, 5.0, 10.0, 20.0, 40.0, 1e4])
+    d = SV.deflection(T)
+    assert d[0] == 0.0 and np.all(np.diff(d[:-1]) > 0)
+    assert 2.0 < SV.deflection(10.0) < 6.0  # a few ticks at 10 N
+    assert d[-1] == pytest.approx(SV.STALL_NM / SV.K_LOOP)  # saturates: the gearbox holds beyond
+    dt = 0.001
+    goals = np.zeros((1500, 9))
+    goals[200:, 0] = 2500.0  # one S1 cable pulls and holds
+    shaft = SV.present_from_goal(goals, dt, np.full(9, 3000.0), np.full(9, 0.03))
+    tr = sim.run(dict(M.NOMINAL), shaft, dt, TR.LATCH)
+    lag = shaft[:, 0] - tr.present[:, 0]
+    hold = slice(1000, None)  # settled: the loop sits at its deflection
+    np.testing.assert_allclose(lag[hold], SV.deflection(tr.tension[hold.start - 1 : -1, 0]), atol=1e-6)
+    assert lag[-1] > 1.0 and tr.tension[-1, 0] > 3.0
+    # loaded, the loop still never exceeds its rate ceiling
+    assert np.abs(np.diff(tr.present, axis=0)).max() / dt <= SV.RATE_RATED + 1e-6
+
+
+def test_held_base_force_moves_the_mount_and_shows_in_the_residual():
+    """A hold on the mount (external force) moves the base on its spring, the arm swings, the
+    cable loads change and the S1 loops' present positions leave their unloaded response."""
+    from embodied_snap.twin.acquire import hold_wrench
+
+    dt = 0.001
+    goals, times = P.primitive(dict(P.OPERATING, tau=0.5), PROTO.primitive.phi0_deg, dt, PROTO)
+    goals = goals[: int(times["t_s2"] / dt)]
+    shaft = SV.present_from_goal(goals, dt, np.full(9, 3000.0), np.full(9, 0.03))
+    t = np.arange(1, len(goals) + 1) * dt
+    t_e = times["t_slack"] - 0.6
+    hold = dict(HOLD, mount_force_n=[30.0, 30.0], hold_s=[0.3, 0.3])
+    w, prog = hold_wrench(t, t_e, hold, np.random.default_rng(0))
+    quiet = sim.run(dict(M.NOMINAL), shaft, dt, TR.LATCH)
+    held = sim.run(dict(M.NOMINAL), shaft, dt, TR.LATCH, wrench=w)
+    before = t < t_e
+    np.testing.assert_allclose(held.present[before], quiet.present[before])
+    moved = np.linalg.norm(held.base - quiet.base, axis=1)
+    assert moved[before].max() == 0.0 and 1e-3 < moved.max() < 0.02  # mm, not cm
+    # the servo-position residual (loaded minus unloaded) changes during the event
+    dres = np.abs((held.present - quiet.present)[:, :3]).max(1)
+    assert dres[before].max() == 0.0 and dres.max() > 0.3  # a fraction of a tick to ticks: the stiff loop
+
+
+def test_ramped_release_latches_when_fast_and_is_dragged_when_slow():
+    """Fig. 2b: a release ramped over 1 s still latches the fold and snaps; over 6 s the curl opens
+    too slowly to hook, nothing latches and the servos drag the arm open below 1 m/s."""
+    dt = 0.001
+    out = {}
+    for ramp in (1.0, 6.0):
+        goals, times = P.primitive(dict(P.OPERATING, tau=0.55), PROTO.primitive.phi0_deg, dt, PROTO, ramp_s=ramp)
+        shaft = SV.present_from_goal(goals, dt, np.full(9, 3000.0), np.full(9, 0.03))
+        tr = sim.run(dict(M.NOMINAL), shaft, dt, TR.LATCH)
+        v = np.linalg.norm(np.diff(tr.pos[:, 2], axis=0), axis=1) / dt
+        out[ramp] = (tr.events["latch_on"] is not None, np.convolve(v, np.ones(8) / 8, "same").max())
+    assert out[1.0][0] and out[1.0][1] > PROTO.thresholds.attach_speed_mps
+    assert not out[6.0][0] and out[6.0][1] < PROTO.thresholds.attach_speed_mps

@@ -10,8 +10,9 @@ from embodied_snap.rawformat import RecordingError, write_json
 sys.stderr = open(snakemake.log[0], "w")
 try:
     with tracked(snakemake):
+        ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
         v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
-        out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups), v)
+        out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups, ee), v)
         print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
         write_json(out, snakemake.output[0])
 except RecordingError as e:  # a group the gate should have stopped: one line, never a dropped trial

@@ -11,7 +11,8 @@ from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    rows = trials.table(snakemake.params.raw, snakemake.params.groups)
+    ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
+    rows = trials.table(snakemake.params.raw, snakemake.params.groups, ee)
     v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
     out = release.summarize(rows, json.load(open(snakemake.input.servo))["ceiling_rad_s"], v)
     print({k: v for k, v in out.items() if k != "speeds"}, file=sys.stderr)

@@ -10,7 +10,8 @@ from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
+    ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
     v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
-    out = snap.fit(trials.table(snakemake.params.raw, snakemake.params.groups), v)
+    out = snap.fit(trials.table(snakemake.params.raw, snakemake.params.groups, ee), v)
     print({k: v for k, v in out.items() if k not in ("trials", "grid")}, file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -15,7 +15,9 @@ from embodied_snap.twin.acquire import acquire_groups
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake) as recordings:
     p = snakemake.params
-    rows = acquire_groups(pd.DataFrame(p.groups), p.raw, seed=p.seed, proto=from_params(p.protocol), dt=p.dt)
+    rows = acquire_groups(
+        pd.DataFrame(p.groups), p.raw, seed=p.seed, proto=from_params(p.protocol), dt=p.dt, hold=p.hold
+    )
     recordings += [str(f) for r in rows for f in group_paths(p.raw, r["group_id"]).values()]
     for f in recordings:
         os.chmod(f, 0o444)

@@ -39,9 +39,11 @@ def summarize(rows) -> dict:
         ci = [float(x) for x in proportion_confint(k, n, method="wilson")] if n else [float("nan")] * 2
         return dict(attached=k, n=n, fraction=k / n if n else float("nan"), ci95=ci)
 
+    closest = np.array([x["closest_m"] for x in r], float)
     return dict(
         n=len(r),
         per_tau=per,
+        closest_attached_median_m=float(np.nanmedian(closest[att])) if att.any() else float("nan"),
         best_tau_s=per[best]["tau"],
         speed_optimal_taus=[min(speed_taus), max(speed_taus)],
         supported_tau_s=supported,

@@ -1,5 +1,6 @@
 """Release modes (paper III-A/B, Fig. 2b): peak tip speed of direct, ramped and instantaneous
-releases; the direct-release range; the fraction of instantaneous releases above 1 m/s; section
+releases; the direct-release range; ramped releases split at 1 m/s into fast snaps and slow
+servo-dragged ones; the fraction of instantaneous releases above 1 m/s; section
 bend rates at the operating point (the instantaneous releases are primitives around it) and their
 ratio to the Eq. 2 ceilings. The 1 m/s is the protocol's attachment threshold, passed in."""
 
@@ -35,4 +36,7 @@ def summarize(rows, ceilings_rad_s, attach_speed_mps: float) -> dict:
         if len(inst) and len(by["direct"])
         else float("nan"),
         ramped_quantiles_mps=q(by["ramped"], [10, 50, 90]),
+        # Fig. 2b: a ramped release either snaps (the fold latched) or is dragged open by the servos
+        ramped_fast_n=int((by["ramped"] > attach_speed_mps).sum()),
+        ramped_slow_n=int((by["ramped"] <= attach_speed_mps).sum()),
     )

@@ -5,12 +5,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import rawformat as RF
+from ..cup import cup_from_axis, tip_axis
 from . import load
 from . import mocap as M
 
 
-def features(mc, meta) -> dict:
+def features(mc, meta, end_effector_m: float) -> dict:
+    """Peak speed and section rates from the release on; with a target, the cup face's (tracked
+    tip pose + end_effector_m along the tip axis, embodied_snap.cup, as in the policy reward)
+    closest approach, lateral offset and tilt there."""
     t = mc.t.to_numpy()
     t0 = load.release_start(meta)
     v_peak, t_peak = M.peak(M.tip_speed(mc), t, t0)
@@ -20,10 +23,10 @@ def features(mc, meta) -> dict:
                closest_m=np.nan, lateral_m=np.nan, tilt_deg=np.nan)
     if "target" not in meta or not mc.target_valid.any():
         return out
-    # Approach of the tracked tip (distal end of S3; the compliant end effector beyond it is not
-    # tracked); the cup axis is the tip frame's -Y (rawformat.TIP_AXIS_LOCAL).
-    axis = M.qrotate(M.track(mc, "tip", ("qw", "qx", "qy", "qz")), np.array(RF.TIP_AXIS_LOCAL))
-    cup = M.track(mc, "tip")
+    # Approach of the cup face: the compliant end effector beyond the tracked tip is not tracked,
+    # its cups sit end_effector_m along the tip axis (the tip frame's -Y).
+    axis = tip_axis(M.track(mc, "tip", ("qw", "qx", "qy", "qz")))
+    cup = cup_from_axis(M.track(mc, "tip"), axis, end_effector_m)
     tgt = M.track(mc, "target")
     d = np.linalg.norm(cup - tgt, axis=1)
     d[t < t0] = np.nan  # the approach after the release began (the block may be carried after)
@@ -41,13 +44,14 @@ def features(mc, meta) -> dict:
     return out
 
 
-def table(raw_dir, groups) -> list[dict]:
-    """Features of each group, with its program and outcome labels."""
+def table(raw_dir, groups, end_effector_m: float) -> list[dict]:
+    """Features of each group (cup face end_effector_m beyond the tip, config rig.end_effector_m),
+    with its program and outcome labels."""
     rows = []
     for g in groups:
         mc, _, meta = load.group(raw_dir, g["group_id"])
         lab, prog = meta.get("labels", {}), meta.get("program", {})
-        rows.append(dict(g, **features(mc, meta), attached=lab.get("attached"),
+        rows.append(dict(g, **features(mc, meta, end_effector_m), attached=lab.get("attached"),
                          snap_speed_event=lab.get("snap_speed_event"),
                          **{k: prog.get(k) for k in ("kind", "rho1", "rho2", "rho3", "tau", "ramp_s")}))
     return rows

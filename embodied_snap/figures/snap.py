@@ -1,6 +1,6 @@
 """Figure 3: snap preconditions and timing. (a) P_snap(rho1, rho2) with the operating point,
-(b) peak tip speed over the S1 delay, (c) closest approach and attachment over the delay;
-shaded: the intervals the sweep supports."""
+(b) peak tip speed over the S1 delay, (c) closest approach of the cup face (embodied_snap.cup) and
+attachment over the delay; shaded: the intervals the sweep supports."""
 
 from __future__ import annotations
 
@@ -59,7 +59,7 @@ def plot_snap(snap: dict, sweep: dict, pdf: str, png: str, *, attach_speed_mps: 
     ax.scatter(tau[~att], d[~att], s=9, facecolors="none", edgecolors=c_no, lw=0.6, label="Missed")
     ax.plot([p["tau"] for p in per], [p["closest_median_m"] * 1e3 for p in per], color="k", lw=0.9)
     ax.set_xlabel(r"S1 delay $\tau$ (s)")
-    ax.set_ylabel("Closest approach (mm)")
+    ax.set_ylabel("Cup closest approach (mm)")
     ax.legend(frameon=False, fontsize=6, loc="lower right", bbox_to_anchor=(1.02, 0.99), ncol=3,
               handletextpad=0.15, columnspacing=0.5, handlelength=0.9, borderaxespad=0)
     style.panel_label(ax, "c")

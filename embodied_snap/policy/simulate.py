@@ -16,6 +16,7 @@ import json
 import numpy as np
 
 from ..characterize import snap as SN
+from ..cup import cup_from_axis
 from ..dynamics import hold
 from ..dynamics.model import AXIS, TIP
 from ..dynamics.rollout import Ensemble
@@ -53,7 +54,7 @@ class Simulator:
         xs, c_h = hold.start(self.bank, act, U[:, :self.history + 1])
         out = self.ens.rollout(xs, U[:, 1:], self.H, parts=(TIP, AXIS))
         tip, axis = out["mean_parts"]
-        cup = tip + self.ee_m * axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+        cup = cup_from_axis(tip, axis, self.ee_m)
         k_s1 = np.ceil((act["tau"] - self.anchor_s) / self.dt).astype(int)
         s = RW.strike(cup, tip, p, normal, k_s1, self.dt)
         p_snap = self.snap.predict(act["rho1"], act["rho2"])

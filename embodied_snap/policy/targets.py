@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from .. import bearing as BR
+from ..cup import cup_from_axis
 from ..dynamics.hold import release_row, rotate_states
 from ..dynamics.model import AXIS, TIP
 from ..resample import STATE_COLUMNS
@@ -39,7 +40,7 @@ def workspace(frames: pd.DataFrame, metas: dict, n: np.ndarray, after_s1: float,
         if i1 <= i0 + 1:
             continue
         X = rotate_states(f[STATE_COLUMNS].to_numpy(np.float64)[i0:i1 + 2], phi0 - P["bearing"], n)
-        cup = X[:, TIP] + ee_m * X[:, AXIS] / np.linalg.norm(X[:, AXIS], axis=1, keepdims=True)
+        cup = cup_from_axis(X[:, TIP], X[:, AXIS], ee_m)
         v = np.linalg.norm(np.diff(X[:, TIP], axis=0), axis=1)
         k = int(np.argmax(v[:-1]))
         pts.append(cup[k])

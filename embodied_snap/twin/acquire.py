@@ -135,7 +135,24 @@ def has_target(row: dict) -> bool:
     return es in ("attachment", "delay_sweep") or (es == "dynamics" and cat in ("target", "sealed"))
 
 
-def simulate_group(row: dict, seed: int, proto: Protocol, dt: float) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
+def hold_wrench(t: np.ndarray, t_e: float, hold: dict, r: np.random.Generator) -> tuple[dict, dict]:
+    """The operator's hold of a held-base trial (config twin.held_base): from t_e a force of
+    mount_force_n on the mount and proximal_force_n on the proximal S1 segment, one random
+    direction, rising and falling over rise_s (smoothstep), held hold_s in between."""
+    u = r.normal(0, 1, 3)
+    u = u / np.linalg.norm(u)
+    fm, fp = r.uniform(*hold["mount_force_n"]), r.uniform(*hold["proximal_force_n"])
+    dur = r.uniform(*hold["hold_s"])
+    rise = hold["rise_s"]
+    s = np.clip((t - t_e) / rise, 0, 1) * np.clip((t_e + 2 * rise + dur - t) / rise, 0, 1)
+    s = s * s * (3 - 2 * s)
+    w = dict(mount=s[:, None] * fm * u, proximal=s[:, None] * fp * u)
+    return w, dict(hold_force_n=float(fm), hold_s=float(dur))
+
+
+def simulate_group(
+    row: dict, seed: int, proto: Protocol, dt: float, hold: dict
+) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
     gid, session = str(row["group_id"]), str(row["session"])
     r = TR.rng_for(seed, "group", gid)
     sess = TR.session_params(seed, session)
@@ -155,8 +172,14 @@ def simulate_group(row: dict, seed: int, proto: Protocol, dt: float) -> tuple[di
         goals, times = P.direct_release(prog, prog["bearing"], dt, proto)
     else:
         goals, times = P.primitive(prog, prog["bearing"], dt, proto, ramp_s=prog.get("ramp_s", 0.0))
-    present = SV.present_from_goal(goals, dt, np.array(sv["rate"]), np.array(sv["tau"]))
-    trial = sim.run(arm, present, dt, TR.LATCH, target=target, seal=TR.SEAL)
+    shaft = SV.present_from_goal(goals, dt, np.array(sv["rate"]), np.array(sv["tau"]))
+    wrench, held = None, {}
+    if row["evidence_set"] == "held_base":
+        t_e = round(float(r.uniform(times["t_preload"] + 0.5, times["t_s1"] + 0.6)), 4)
+        wrench, held = hold_wrench(np.arange(1, len(goals) + 1) * dt, t_e, hold, r)
+        prog.update(held)  # what the operator did (the label is when)
+        held = dict(base_event_t=t_e)
+    trial = sim.run(arm, shaft, dt, TR.LATCH, target=target, seal=TR.SEAL, wrench=wrench, rate=np.array(sv["rate"]))
     ev = trial.events
     # --- observed labels (what the operator notes on the rig) ---
     vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / dt
@@ -167,14 +190,11 @@ def simulate_group(row: dict, seed: int, proto: Protocol, dt: float) -> tuple[di
         attached = ev["sealed"] is not None
         retain = attached and r.uniform() < 1.0 - ev.get("seal_tilt", 0.0) / 300.0  # tilted seals leak
         labels.update(attached=bool(attached), retrieved=bool(retain), t_attach=ev["sealed"])
-    if row["evidence_set"] == "held_base":
-        labels["base_event_t"] = round(float(r.uniform(times["t_preload"] + 0.5, times["t_s1"] + 0.6)), 4)
+    labels.update(held)
     # --- recordings ---
     calib = dict(base_pos=sess["base_pos"], base_quat=sess["base_quat"])
     mc = MC.mocap_frame(trial, calib, target, r)
-    if row["evidence_set"] == "held_base":
-        _hold_base(mc, labels["base_event_t"], r)
-    sl = MC.servo_frame(trial.t, goals, present, trial.tension, r)
+    sl = MC.servo_frame(trial.t, goals, trial.present, trial.tension, r)
     R = MC.quat_to_mat(np.asarray(sess["base_quat"]))
     axis = R @ np.array([0.0, -1.0, 0.0])
     meta = dict(
@@ -195,18 +215,6 @@ def simulate_group(row: dict, seed: int, proto: Protocol, dt: float) -> tuple[di
     return meta, mc, sl
 
 
-def _hold_base(mc: pd.DataFrame, t_e: float, r: np.random.Generator) -> None:
-    """The operator holds and deforms the mount: from t_e the base and the whole arm move rigidly
-    by a smooth 5-15 mm displacement (0.3 s rise), which the arm's own motion rides on."""
-    d = r.normal(0, 1, 3)
-    d = d / np.linalg.norm(d) * r.uniform(0.005, 0.015)
-    s = np.clip((mc.t.to_numpy() - t_e) / 0.3, 0, 1)
-    s = s * s * (3 - 2 * s)
-    for b in ("base", "s1", "s2", "tip"):
-        for i, f in enumerate("xyz"):
-            mc[f"{b}_{f}"] = mc[f"{b}_{f}"] + s * d[i]
-
-
 def _recorded_at(gid: str, session: str) -> str:
     """Deterministic wall time: sessions on consecutive days, groups a few minutes apart."""
     k = int(gid.split("_")[-1])
@@ -215,11 +223,18 @@ def _recorded_at(gid: str, session: str) -> str:
 
 
 def acquire_groups(
-    groups: "pd.DataFrame", raw_dir: str | Path, seed: int, proto: Protocol, dt: float, progress: bool = True
+    groups: "pd.DataFrame",
+    raw_dir: str | Path,
+    seed: int,
+    proto: Protocol,
+    dt: float,
+    hold: dict,
+    progress: bool = True,
 ) -> list[dict]:
     """Simulate and write each group (rows: group_id, evidence_set, category, session; extra
     columns ignored) via rawformat.write_group under the protocol `proto` (its primitive, rig and
-    thresholds sections), integrated at dt (config twin.dt). Returns one index row per group."""
+    thresholds sections), integrated at dt (config twin.dt), held-base events from `hold` (config
+    twin.held_base). Returns one index row per group."""
     rows = groups.to_dict("records") if isinstance(groups, pd.DataFrame) else list(groups)
     it = rows
     if progress:
@@ -228,7 +243,7 @@ def acquire_groups(
         it = tqdm(rows, desc="twin", unit="group")
     out = []
     for row in it:
-        meta, mc, sl = simulate_group(row, seed, proto, dt)
+        meta, mc, sl = simulate_group(row, seed, proto, dt, hold)
         RF.write_group(raw_dir, meta, mc, sl)
         out.append(
             dict(

@@ -43,7 +43,7 @@ def mocap_frame(trial, calib: dict, target: dict | None, rng: np.random.Generato
     quat = _resample(t_step, trial.quat, t)
     quat /= np.linalg.norm(quat, axis=-1, keepdims=True)
     poses = {}
-    poses["base"] = (np.tile(B, (n, 1)), np.tile(qB, (n, 1)))
+    poses["base"] = (_resample(t_step, trial.base, t) @ R.T + B, np.tile(qB, (n, 1)))  # the mount translates
     for j, b in enumerate(("s1", "s2", "tip")):
         poses[b] = (pos[:, j] @ R.T + B, qmul(qB[None], quat[:, j]))
     if target is not None:
@@ -78,6 +78,7 @@ def mocap_frame(trial, calib: dict, target: dict | None, rng: np.random.Generato
 
 
 def servo_frame(t_step, goals, present, tension, rng: np.random.Generator) -> pd.DataFrame:
+    """present: the simulated present positions (sim.Trial.present, loaded loop)."""
     """~100 Hz sync-read log with jittered timestamps (USB latency)."""
     dts = np.clip(rng.normal(0.010, 0.0015, int((t_step[-1] - t_step[0]) / 0.006) + 2), 0.006, 0.016)
     t = t_step[0] + 0.002 + np.cumsum(dts)

@@ -36,9 +36,16 @@ NOMINAL = dict(
     cable_kp=4000.0,  # N/m, series compliance of cable, spool and lattice (identified with the latch)
     cable_kv=8.0,  # N s/m
     cable_fmax=300.0,  # N, servo stall torque / spool radius
+    # The mount (clamp, servo bracket and nine servos) hangs on the lab frame, which yields when an
+    # operator holds it: three translations on a spring-damper (chosen, not fitted: a 1 kg mount,
+    # 8 N/mm, 30 % of critical damping; a 10-40 N hand moves it 1-5 mm).
+    mount_mass=1.0,  # kg
+    mount_stiffness=8000.0,  # N/m per axis
+    mount_damping_ratio=0.3,
 )
 
 BODY_NAMES = ("s1", "s2", "tip")  # tracked distal ends of S1, S2, S3
+PROXIMAL = "seg1_0"  # the proximal S1 segment, where a hand on the mount also grips the arm
 
 
 def seg_names():
@@ -100,6 +107,17 @@ def mjcf(p: dict) -> str:
                 f'contype="1" conaffinity="1" condim="3" friction="1.0"/>'
             )
     body += closing
+    # the mount: three slides on a spring-damper, the y spring preloaded so the loaded mount rests at 0
+    km, mm = p["mount_stiffness"], p["mount_mass"]
+    cm = 2 * p["mount_damping_ratio"] * np.sqrt(km * (mm + masses.sum()))
+    sag = (mm + masses.sum()) * 9.81 / km
+    mount = "".join(
+        f'<joint name="mount_{ax}" type="slide" axis="{v}" stiffness="{km:.6g}" damping="{cm:.6g}" '
+        f'springref="{ref:.8f}"/>'
+        for ax, v, ref in (("x", "1 0 0", 0.0), ("y", "0 1 0", sag), ("z", "0 0 1", 0.0))
+    )
+    mount += f'<geom name="mount_g" type="sphere" size="0.03" mass="{mm:.6g}" contype="0" conaffinity="0"/>'
+    mount += '<site name="mount" pos="0 0 0"/>'
     tendons, acts = "", ""
     for s in range(1, 4):
         for k in range(1, 4):
@@ -134,7 +152,7 @@ def mjcf(p: dict) -> str:
 <compiler angle="radian"/>
 <option timestep="0.001" gravity="0 -9.81 0" integrator="Euler" viscosity="{p.get("drag", 0.0)}"/>
 <worldbody>
-<body name="base" pos="0 0 0">{body}</body>
+<body name="base" pos="0 0 0">{mount}{body}</body>
 <body name="target" mocap="true" pos="0 -5 0">
 <geom name="target_g" type="box" size="0.05 0.03 0.015" contype="1" conaffinity="1" condim="3" friction="1.0"/>
 </body>

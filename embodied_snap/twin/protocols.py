@@ -49,8 +49,10 @@ def primitive(p: dict, bearing: float, dt: float, proto: Protocol, ramp_s: float
     """The four-stage snap primitive (paper III-B): preload, S3 slack, S2 over the protocol's S2
     ramp, S1 after tau.
 
-    ramp_s > 0 stretches the distal slackening (S3 slack and S2 release) over ramp_s seconds
-    (the 'ramped' release mode); S1 then follows tau after the ramp ends.
+    ramp_s > 0 stretches the whole release over ramp_s seconds (the 'ramped' release mode, paper
+    III-B: "ramping the same command over 1-6 s"): S3 slack and S2 release together, then, tau
+    after that ramp ends, S1 paid out over ramp_s as well. Whether the fold latches (a fast snap)
+    or not (the servos drag the arm open) is the rig's, not the program's.
     """
     rho = (p["rho1"], p["rho2"], p["rho3"])
     W, dur = _preload(rho, bearing, dt, proto.rig.rated_speed_tick_s)
@@ -61,7 +63,7 @@ def primitive(p: dict, bearing: float, dt: float, proto: Protocol, ramp_s: float
     else:
         t2 = t_s + T_S2
     t1 = t2 + s2_ramp + p["tau"] if ramp_s > 0 else t2 + p["tau"]
-    t_end = t1 + T_AFTER
+    t_end = t1 + ramp_s + T_AFTER
     t = np.arange(int(round(t_end / dt))) * dt
     goals = np.zeros((len(t), 9))
     ramp = (t >= T_HANG) & (t < T_HANG + dur)
@@ -71,7 +73,7 @@ def primitive(p: dict, bearing: float, dt: float, proto: Protocol, ramp_s: float
     tr = t[rel]
     if ramp_s > 0:
         a3 = a2 = np.clip(1.0 - (tr - t_s) / ramp_s, 0.0, 1.0)
-        a1 = (tr < t1).astype(float)
+        a1 = np.clip(1.0 - (tr - t1) / ramp_s, 0.0, 1.0)  # S1 paid out over ramp_s too
         c = _g(bearing)
         cum = np.stack([rho[0] * a1, rho[0] * a1 + rho[1] * a2, rho[0] * a1 + rho[1] * a2 + rho[2] * a3], 1)
         g = (cum[:, :, None] * c[None, None, :]).reshape(-1, 9)

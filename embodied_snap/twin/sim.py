@@ -26,9 +26,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import model as M
+from . import servo as SV
 
 CUP_R = 0.02  # m, cup collision radius (simulated hardware, not a protocol value)
 CHECK_S = 0.004  # s between latch / seal checks (independent of dt)
+RATE_CHECKS = 5  # the curl's opening rate at the catch is measured over this many checks (20 ms)
 
 
 @dataclass
@@ -38,6 +40,8 @@ class Trial:
     quat: np.ndarray  # (T, 3, 4) orientations of those bodies (w, x, y, z)
     cup: np.ndarray  # (T, 3) cup face (end-effector tip) position
     tension: np.ndarray  # (T, 9) cable tensions, N (>= 0)
+    present: np.ndarray  # (T, 9) servo present positions, ticks (unloaded loop minus deflection)
+    base: np.ndarray  # (T, 3) mount position (arm frame; 0 at rest)
     events: dict = field(default_factory=dict)
 
 
@@ -49,13 +53,14 @@ def _ids(m):
     bodies = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"seg{s}_{last[s]}") for s in (1, 2, 3)]
     sites = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, n) for n in M.BODY_NAMES]
     cup = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "cup")
+    mount = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, "mount")
     # dof addresses per section
     dofs = {s: [] for s in (1, 2, 3, 4)}
     for s, _i, name in segs:
         for ax in "zx":
             j = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, f"{name}_{ax}")
             dofs[s].append(int(m.jnt_dofadr[j]))
-    return bodies, sites, cup, {s: np.array(v) for s, v in dofs.items()}
+    return bodies, sites, cup, mount, {s: np.array(v) for s, v in dofs.items()}
 
 
 def section_bend(q: np.ndarray, dofs: dict, s: int) -> float:
@@ -66,20 +71,38 @@ def section_bend(q: np.ndarray, dofs: dict, s: int) -> float:
 
 def run(
     p: dict,
-    present: np.ndarray,
+    shaft: np.ndarray,
     dt: float,
     latch: dict,
     target: dict | None = None,
     seal: dict | None = None,
+    wrench: dict | None = None,
+    rate: np.ndarray | None = None,
 ) -> Trial:
-    """Step the arm through `present` (T, 9 ticks, one row per physics step)."""
+    """Step the arm with the servos' unloaded loop response `shaft` (T, 9 ticks, one row per
+    physics step, servo.present_from_goal). Every step the present position is the shaft minus
+    the loop's deflection under the cable tension of the step before (servo.deflection; the loop
+    is 50x stiffer than the cable, so the explicit coupling is stable), and the cable's free
+    length follows it. The gearbox is not backdrivable: the load moves the loop no faster than
+    the motor runs, so the present position changes by at most `rate` (tick/s per servo, default
+    the rated ceiling) per step. `wrench`: external forces (N, arm frame) {"mount": (T, 3), "proximal":
+    (T, 3)}, applied (MuJoCo xfrc_applied) on the rows where they are non-zero."""
     import mujoco
 
     m = M.build(p, dt)
     d = mujoco.MjData(m)
-    bodies, sites, cup_site, dofs = _ids(m)
-    n = present.shape[0]
-    free_len = -M.K_TICK * present  # cable free length relative to the straight arm
+    bodies, sites, cup_site, mount_site, dofs = _ids(m)
+    n = shaft.shape[0]
+    present = np.empty((n, 9))
+    defl = np.zeros(9)
+    step = (SV.RATE_RATED if rate is None else np.minimum(np.asarray(rate, float), SV.RATE_RATED)) * dt
+    pushed = []
+    if wrench is not None:
+        for name, key in ((0, "mount"), (M.PROXIMAL, "proximal")):
+            bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "base" if name == 0 else name)
+            pushed.append((bid, np.asarray(wrench[key], float)))
+        active = np.flatnonzero(np.any([np.any(f != 0, axis=1) for _, f in pushed], axis=0))
+        span = (active[0], active[-1] + 1) if len(active) else (n, n)
     # every step, whole arrays are copied (no fancy indexing in the loop); selected afterwards
     site_buf = np.empty((n, m.nsite, 3))
     quat_buf = np.empty((n, m.nbody, 4))
@@ -93,6 +116,7 @@ def run(
     every = max(1, int(round(CHECK_S / dt)))  # latch and seal are checked every CHECK_S
     ev = dict(latch_on=None, latch_off=None, latch_cause=None, sealed=None, contact=None)
     latched = False
+    b3_hist = []
     relax = every * dt / latch["creep_s"]
     clamp = 0
     b3max = 0.0
@@ -113,11 +137,19 @@ def run(
         ee_len = p["ee_len"] / M.N_EE
     mujoco.mj_forward(m, d)
     for i in range(n):
-        d.ctrl[:] = free_len[i]
+        present[i] = shaft[i] - defl
+        if i:
+            present[i] = np.clip(present[i], present[i - 1] - step, present[i - 1] + step)
+        free_len = -M.K_TICK * present[i]  # cable free length relative to the straight arm
+        d.ctrl[:] = free_len
+        if pushed and span[0] <= i <= span[1]:
+            for bid, f in pushed:
+                d.xfrc_applied[bid, :3] = f[i] if i < span[1] else 0.0
         mujoco.mj_step(m, d)
         site_buf[i] = d.site_xpos
         quat_buf[i] = d.xquat
         force[i] = d.actuator_force
+        defl = SV.deflection(-force[i])
         if i % every:
             continue
         # --- fold latch ---
@@ -128,22 +160,30 @@ def run(
             b3 = section_bend(q, dofs, 3)
             if b3 > latch["engage_rad"]:
                 b3max = max(b3max, b3)
+            b3_hist.append(b3)
             if b3max > 0 and b3 < b3max - latch["catch_rad"] and ev.get("curl") is None:
+                # how fast the curl opens as it catches (over the last RATE_CHECKS checks)
+                k = min(RATE_CHECKS, len(b3_hist) - 1)
+                ev["catch_rate"] = (b3_hist[-1 - k] - b3) / (k * every * dt) if k else 0.0
+                ev["curl"] = sum(section_bend(q, dofs, s) for s in (1, 2, 3))
+                if ev["catch_rate"] < latch["catch_rate_rad_s"]:
+                    # opened slowly (a ramped slackening): the tip slides along the arm instead of
+                    # swinging into it and hooking, so there is no latch and the servos drag the release
+                    ev["curl"] = 0.0
                 # the curled tip can only hook onto the arm when the whole curl (sum of the
                 # section bends) reaches curl_min; beyond curl_max it hooks so deep that the
                 # S1 cables no longer clamp the fold and slackening them cannot open it (jam)
-                ev["curl"] = sum(section_bend(q, dofs, s) for s in (1, 2, 3))
             if ev.get("curl") is not None and ev["curl"] >= latch["curl_min"]:
                 latched = True
                 m.eq_data[eq_ids, 0] = q[eq_qadr]
                 d.eq_active[eq_ids] = 1
-                clamp = int(np.argmax(present[i, :3]))  # the most wound S1 cable
+                clamp = int(np.argmax(shaft[i, :3]))  # the most wound S1 cable
                 ev["latch_on"] = i * dt
         elif latched:
             m.eq_data[creep_ids, 0] -= m.eq_data[creep_ids, 0] * relax  # the TPU fold relaxes
             # the fold is clamped shut by the S1 cables: it pops once the most wound one hangs
             # open_m slack (servo paid out more than the held shape needs); a fuse at break_nm
-            slack = free_len[i, clamp] - d.ten_length[clamp]
+            slack = free_len[clamp] - d.ten_length[clamp]
             load = np.abs(d.qfrc_constraint[latch_dofs]).sum()
             jammed = ev["curl"] > latch["curl_max"]
             if (slack > latch["open_m"] and not jammed) or load > latch["break_nm"]:
@@ -171,4 +211,4 @@ def run(
                     d.eq_active[seal_eq] = 1
                     ev.update(sealed=i * dt, seal_speed=float(np.linalg.norm(v)), seal_tilt=tilt)
     pos, quat, cup = site_buf[:, sites], quat_buf[:, bodies], site_buf[:, cup_site]
-    return Trial(np.arange(1, n + 1) * dt, pos, quat, cup, -force, ev)
+    return Trial(np.arange(1, n + 1) * dt, pos, quat, cup, -force, present, site_buf[:, mount_site], ev)

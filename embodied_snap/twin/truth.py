@@ -17,7 +17,11 @@ from . import servo as SV
 from . import sim
 
 # Fold latch and cup seal (identified against paper III; see docs/twin.md).
-LATCH = dict(engage_rad=1.4, catch_rad=0.05, creep_s=1.32, open_m=0.0074, break_nm=30.0, curl_min=4.99, curl_max=5.445)
+# catch_rate_rad_s: the curl must open at least this fast to hook (slow ramps slide off: no latch)
+LATCH = dict(
+    engage_rad=1.4, catch_rad=0.05, catch_rate_rad_s=0.5, creep_s=1.32,
+    open_m=0.0074, break_nm=30.0, curl_min=4.99, curl_max=5.445,
+)
 # The seal's own physics (the simulated cup seals from 1 m/s): the twin's truth that the pipeline's
 # attachment threshold (config characterize.attach_speed_mps) is measured against, not a protocol value.
 SEAL = dict(gap_m=0.03, overlap_m=0.02, speed_mps=1.0, tilt_deg=120.0)
@@ -104,6 +108,6 @@ def effective_levers(amplitude: float = 2000.0, dt: float = 0.001) -> list[float
         c = np.array([1.0, -1, -1, -1])
         q = [np.array([1.0, 0, 0, 0])] + [tr.quat[-1, j] for j in range(3)]
         th = [2 * np.arccos(min(1.0, abs(qmul(q[j] * c, q[j + 1])[0]))) for j in range(3)]
-        w = pres[-1, 3 * (s - 1)]
+        w = tr.present[-1, 3 * (s - 1)]
         L.append(float((w - sum(L[j] * th[j] for j in range(s - 1))) / th[s - 1]))
     return [round(x, 1) for x in L]
