@@ -29,6 +29,7 @@ include: "rules/characterize.smk"
 include: "rules/dynamics.smk"
 include: "rules/policy.smk"
 include: "rules/ablation.smk"
+include: "rules/robustness.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -45,4 +46,6 @@ rule all:
         "results/dynamics/claims.csv",
         "results/policy/claims.csv",
         "results/ablation/claims.csv",
+        "results/robustness/claims.csv",
+        "results/figs/figS1_robustness.pdf",
         TWIN_REPORTS,
