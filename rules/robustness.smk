@@ -42,14 +42,13 @@ def rob_targets(name):
 
 
 def rob_evals(variant):
-    return [
-        f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF
-    ]
+    return [f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
 
 
 rule robustness_targets:
     """Uniform workspace targets (training per generation, selection, evaluation; a seed each) and the
-    training targets of the generations the continued runs add (up to the largest budget)."""
+    training targets of the generations the continued runs add (up to the largest budget).
+    """
     input:
         workspace=f"{POL}/workspace.json",
         code=imports("robustness_targets"),
@@ -174,9 +173,9 @@ rule robustness_evaluate:
     threads: 1
     params:
         **SIM_PARAMS,
-        generations=lambda wc: BUDGET_GENERATIONS[wc.variant]
-        if wc.variant in SHORTER
-        else None,
+        generations=lambda wc: (
+            BUDGET_GENERATIONS[wc.variant] if wc.variant in SHORTER else None
+        ),
     script:
         "../workflow_scripts/policy_evaluate.py"
 
@@ -191,7 +190,9 @@ rule robustness_summary:
         uniform_runs=[f"{ROB}/uniform/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF],
         uniform_fixed=f"{ROB}/uniform/eval/fixed.parquet",
         longer_runs=[
-            f"{ROB}/{v}/runs/{a}_seed{s}.json" for v in LONGER for a, s in POLICY_RUNS_OF
+            f"{ROB}/{v}/runs/{a}_seed{s}.json"
+            for v in LONGER
+            for a, s in POLICY_RUNS_OF
         ],
         evals=[f for v in ROB_VARIANTS for f in rob_evals(v)],
         code=imports("robustness_summary"),

@@ -2,7 +2,6 @@
 to a larger budget (input `resume`: the run and its CMA-ES state)."""
 
 import json
-import pickle
 import sys
 
 import torch
@@ -30,6 +29,6 @@ with tracked(snakemake):
     c = run["curve"]
     print(f"{P.arch} seed {P.seed}: held-out {c[0]['heldout_reward']:.3f} -> {c[-1]['heldout_reward']:.3f}, "
           f"selected generation {run['selected_generation']} ({run['selection_reward']:.3f})", file=sys.stderr)
-    with open(snakemake.output.state, "wb") as f:
-        pickle.dump(run.pop("state"), f)
+    with open(snakemake.output.state, "wb") as f:  # already pickled by cmaes
+        f.write(run.pop("state"))
     write_json(run, snakemake.output.run)

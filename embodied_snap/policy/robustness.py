@@ -70,7 +70,7 @@ def claim_rows(summary: dict, paper: dict) -> list[dict]:
 
     rows = []
     for v, x in summary.items():
-        def row(cid, quantity, ours, ref_value, unit=""):
+        def row(cid, quantity, ours, ref_value, unit="", v=v):
             rows.append(dict(claim_id=f"{v}.{cid}", variant=v, section="V-B", quantity=quantity,
                              paper=fmt(ref_value), ours=fmt(ours), unit=unit))
 

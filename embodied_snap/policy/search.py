@@ -71,16 +71,17 @@ def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select:
     snapshots: generation counts at which the selection so far is kept (`run["snapshots"]`): a run
     stopped there selects exactly that policy, since CMA-ES does not depend on the total budget.
     resume: a finished run (with its `state`) to continue up to `generations` (a larger budget).
-    The returned run carries `state` (bytes: the CMA-ES object and numpy's global random state,
-    which pycma samples from) for such a continuation; it is not JSON and is written on its own."""
+    The returned run carries `state` (bytes: the pickled CMA-ES object; pycma samples with
+    np.random.randn, and pickling that bound method takes the random state along, so a continuation
+    in another process draws what the longer run would have) for such a continuation; it is not JSON
+    and is written on its own."""
     npar = networks.n_params(arch)
     if resume is None:
         es = cma.CMAEvolutionStrategy(np.zeros(npar), sigma0,
                                       {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
         curve, best, snaps = [], (-np.inf, None, 0), {}
     else:  # the run's last held-out score is logged already
-        es, rng_state = pickle.loads(resume["state"])
-        np.random.set_state(rng_state)
+        es = pickle.loads(resume["state"])
         curve, snaps = [dict(c) for c in resume["curve"]], dict(resume.get("snapshots", {}))
         best = (resume["selection_reward"], np.asarray(resume["theta"]), resume["selected_generation"])
     per_gen = popsize * int((gen_of == gen_of.min()).sum())
@@ -114,7 +115,7 @@ def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select:
     return dict(arch=arch, seed=seed, n_params=npar, evaluations_per_generation=per_gen, curve=curve,
                 selected_generation=best[2], selection_reward=best[0],
                 final_heldout_reward=curve[-1]["heldout_reward"], theta=best[1].tolist(), norm=norm,
-                snapshots=snaps, state=pickle.dumps((es, np.random.get_state())))
+                snapshots=snaps, state=pickle.dumps(es))
 
 
 def at_budget(run: dict, generations: int) -> dict:
