@@ -24,7 +24,7 @@ BOOKKEEPING = frozenset({
 # after them, so `esnap audit` lists them in a chain but does not descend into them.
 GATES = frozenset({"check_separation", "prov_export"})
 # Rules that only name other targets and write nothing.
-TARGETS = frozenset({"all"})
+TARGETS = frozenset({"all", "robustness"})
 # Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
 SOURCE_RULES = frozenset({"twin_acquire", "validate_shard", "resample_shard"})
 # Rules that write a file source.
