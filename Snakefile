@@ -1,5 +1,5 @@
 # embodied-snap: from raw rig recordings to every figure of the paper, with lineage.
-# Targets: all (default), figures, deployment (later stages add tables).
+# Targets: all (default), results/figures, robustness (the architecture benchmark's variants).
 from snakemake.utils import min_version, validate
 
 min_version("9.0")
@@ -29,6 +29,7 @@ include: "rules/characterize.smk"
 include: "rules/dynamics.smk"
 include: "rules/policy.smk"
 include: "rules/ablation.smk"
+include: "rules/robustness.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -46,3 +47,11 @@ rule all:
         "results/policy/claims.csv",
         "results/ablation/claims.csv",
         TWIN_REPORTS,
+
+
+rule robustness:
+    """The architecture benchmark's robustness variants (docs/policy.md): about an hour more on two
+    cores at the paper budget, so not part of `all`."""
+    input:
+        "results/robustness/claims.csv",
+        "results/figs/figS1_robustness.pdf",

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from embodied_snap import protocol
 from embodied_snap import sealed
+from embodied_snap.lineage import policy as SEPARATION
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import RecordingError, group_paths

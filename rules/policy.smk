@@ -86,7 +86,8 @@ rule policy_search:
         selection=f"{POL}/targets_selection.parquet",
         code=imports("policy_search"),
     output:
-        f"{POL}/runs/{{arch}}_seed{{seed}}.json",
+        run=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{POL}/runs/{{arch}}_seed{{seed}}.cma.pkl",
     log:
         "logs/policy/search_{arch}_seed{seed}.log",
     benchmark:
@@ -100,6 +101,12 @@ rule policy_search:
         seed=lambda wc: int(wc.seed),
         generations=PBUDGET["generations"],
         popsize=PBUDGET["popsize"],
+        # where a smaller budget would have stopped: its selection is kept (rules/robustness.smk)
+        snapshots=[
+            round(f * PBUDGET["generations"])
+            for f in PCFG["robustness"]["budget_factors"].values()
+            if f < 1
+        ],
     script:
         "../workflow_scripts/policy_search.py"
 

@@ -71,7 +71,7 @@ def wf(tmp_path_factory):
         (shutil.copytree if src.is_dir() else shutil.copy2)(
             src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
         )
-    snakemake(d, "all")
+    snakemake(d, "all", "robustness")
     return d
 
 
@@ -89,6 +89,22 @@ def test_fresh_run_builds_figures_and_lineage(wf):
     # the sealed set, recorded beside the recordings when first split
     rec = json.loads((wf / "raw_data/sealed.json").read_text())["groups"]
     assert sorted(rec) == sorted(split[split.role == "sealed"].group_id)
+
+
+def test_robustness_variants_extend_the_benchmark(wf):
+    """The variants' benchmark is the policy stage's; the double budget continues each run (its first
+    generations are the run's own) and the half budget stops it halfway."""
+    s = json.loads((wf / "results/robustness/summary.json").read_text())
+    bench = json.loads((wf / "results/policy/summary.json").read_text())
+    assert list(s) == ["benchmark", "uniform", "half", "double"]
+    assert s["benchmark"]["reward"] == bench["reward"]
+    g = s["benchmark"]["generations"]
+    assert s["double"]["generations"] == 2 * g and s["half"]["generations"] == round(g / 2)
+    run = json.loads((wf / "results/policy/runs/shared_seed0.json").read_text())
+    longer = json.loads((wf / "results/robustness/double/runs/shared_seed0.json").read_text())
+    assert longer["curve"][:g] == run["curve"] and len(longer["curve"]) == 2 * g
+    claims = pd.read_csv(wf / "results/robustness/claims.csv")
+    assert set(claims.variant) == set(s) and (claims.claim_id.str.endswith("ranking_reward_holds")).sum() == 4
 
 
 def test_nothing_to_do_after_a_run(wf):

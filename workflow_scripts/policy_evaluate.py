@@ -1,4 +1,5 @@
-"""The selected policy of one run on the evaluation targets (used by nothing before this job)."""
+"""The selected policy of one run on the evaluation targets (used by nothing before this job); with
+params.generations, the policy the run had selected at that point (a smaller budget)."""
 
 import json
 import sys
@@ -16,6 +17,8 @@ with tracked(snakemake):
     P, I = snakemake.params, snakemake.input
     sim, ws = simulate.for_job(I, P)
     run = json.load(open(I.run))
+    if P.get("generations"):
+        run = search.at_budget(run, P.generations)
     T = search.Targets(read_parquet(I.evaluation), ws)
     act = search.policy_actions(run["arch"], np.asarray(run["theta"]), T, run["norm"], P.policy["ranges"])
     df = search.outcomes(sim, act, T, run["arch"], run["seed"])

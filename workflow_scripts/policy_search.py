@@ -1,5 +1,7 @@
-"""One CMA-ES run: an architecture and an optimisation seed (paper IV-B/IV-C)."""
+"""One CMA-ES run: an architecture and an optimisation seed (paper IV-B/IV-C); or such a run continued
+to a larger budget (input `resume`: the run and its CMA-ES state)."""
 
+import json
 import sys
 
 import torch
@@ -16,10 +18,17 @@ with tracked(snakemake):
     sim, ws = simulate.for_job(I, P)
     tr = read_parquet(I.training)
     train = search.Targets(tr, ws)
+    resume = None
+    if "resume" in I.keys():
+        resume = dict(json.load(open(I.resume)), state=open(I.resume_state, "rb").read())
+    norm = resume["norm"] if resume else search.feature_stats(train)
     run = search.cmaes(sim, P.arch, P.seed, train, tr["generation"].to_numpy(),
-                       search.Targets(read_parquet(I.selection), ws), search.feature_stats(train),
-                       P.policy["ranges"], P.generations, P.popsize, P.policy["sigma0"])
+                       search.Targets(read_parquet(I.selection), ws), norm,
+                       P.policy["ranges"], P.generations, P.popsize, P.policy["sigma0"],
+                       snapshots=P.snapshots, resume=resume)
     c = run["curve"]
     print(f"{P.arch} seed {P.seed}: held-out {c[0]['heldout_reward']:.3f} -> {c[-1]['heldout_reward']:.3f}, "
           f"selected generation {run['selected_generation']} ({run['selection_reward']:.3f})", file=sys.stderr)
-    write_json(run, snakemake.output[0])
+    with open(snakemake.output.state, "wb") as f:  # already pickled by cmaes
+        f.write(run.pop("state"))
+    write_json(run, snakemake.output.run)

@@ -127,7 +127,7 @@ def dag_violations(nodes: list[dict], groups: dict | None = None, raw: str = DEF
             n_readers += src == "twin_truth"
             if n["rule"] not in P.POLICY[src].readers:
                 out.append(f"separation (DAG): {_art(n)} (rule {n['rule']}) reads {f}; {RULE}: {P.POLICY[src].rule}")
-            else:
+            elif n["rule"] not in P.BOOKKEEPING:  # bookkeeping (the proof itself) passes no data on
                 out += _walk(nodes, [i], src, f)
     return out, dict(dag_jobs=len(nodes), dag_source_shards=len(shards), dag_direct_readers=n_direct,
                      dag_truth_readers=n_readers)

@@ -24,11 +24,11 @@ BOOKKEEPING = frozenset({
 # after them, so `esnap audit` lists them in a chain but does not descend into them.
 GATES = frozenset({"check_separation", "prov_export"})
 # Rules that only name other targets and write nothing.
-TARGETS = frozenset({"all"})
+TARGETS = frozenset({"all", "robustness"})
 # Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
 SOURCE_RULES = frozenset({"twin_acquire", "validate_shard", "resample_shard"})
 # Rules that write a file source.
-FILE_WRITERS = frozenset({"twin_truth", "policy_targets", "ablation_targets"})
+FILE_WRITERS = frozenset({"twin_truth", "policy_targets", "ablation_targets", "robustness_targets"})
 
 # Reports of each stage: tables and figures, and the folder that gathers the figures.
 CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_validation", "figures")
@@ -38,10 +38,16 @@ POLICY_REPORTS = ("fig_benchmark", "table_policy_claims", "figures")
 # The release-rule ablation (paper V-A, V-B, Fig. 6): everything after the offset fit, and the fit.
 ABLATION_EVAL = ("ablation_rules", "ablation_summary", "fig_ablation", "table_ablation_claims", "figures")
 ABLATION_RUNS = ("ablation_offsets", "ablation_bend", "ablation_perturb", *ABLATION_EVAL)
+# The architecture benchmark's robustness variants (rules/robustness.smk): runs on their own targets
+# or continued from the benchmark's, evaluated, summarised.
+ROBUSTNESS_RUNS = ("robustness_search_uniform", "robustness_search_longer", "robustness_fixed",
+                   "robustness_evaluate")
+ROBUSTNESS_REPORTS = ("robustness_summary", "fig_robustness", "table_robustness_claims")
+ROBUSTNESS = (*ROBUSTNESS_RUNS, *ROBUSTNESS_REPORTS)
 # Everything that uses the GRU models (trained on train, selected on validation windows).
 MODEL_USERS = (
     "dynamics_validate", "dynamics_sealed_eval", "dynamics_gate", *POLICY_RUNS, *DYN_REPORTS,
-    *POLICY_REPORTS, *ABLATION_RUNS,
+    *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS,
 )
 
 
@@ -80,7 +86,7 @@ POLICY: dict[str, Source] = {
     # The dynamics corpus by split role (440 / 78 / 20).
     "train": Source(
         ("windows(role=train)", "dynamics_train", "characterize_snap", "dynamics_hold", "policy_workspace",
-         "policy_targets", "ablation_targets", *MODEL_USERS, *CHAR_REPORTS),
+         "policy_targets", "ablation_targets", "robustness_targets", *MODEL_USERS, *CHAR_REPORTS),
         "train groups stay in the training windows; the hold bank and snap classifier use them"),
     "validation": Source(
         ("windows(role=validation)", "dynamics_train", "dynamics_persistence", *MODEL_USERS),
@@ -95,16 +101,17 @@ POLICY: dict[str, Source] = {
         ("twin_validation",), "only twin_validation reads the simulated rig's ground truth",
         held_out=True, readers=("twin_validation",)),
     "results/policy/targets_selection.parquet": Source(
-        (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS),
+        (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS),
         "the selection targets select policies and the fixed primitive, nothing else",
-        readers=("policy_search", "policy_fixed", "check_separation")),
+        readers=("policy_search", "policy_fixed", "robustness_search_longer", "check_separation")),
     "results/policy/targets_evaluation.parquet": Source(
         ("policy_evaluate", "policy_fixed", "policy_summary", *POLICY_REPORTS, "ablation_bend", "ablation_perturb",
-         "ablation_summary", "fig_ablation", "table_ablation_claims"),
+         "ablation_summary", "fig_ablation", "table_ablation_claims", "robustness_evaluate",
+         *ROBUSTNESS_REPORTS),
         "the evaluation targets are read only by the final evaluation, after selection (and the ablation's "
-        "analyses of the selected policy on them)",
+        "analyses of the selected policy on them, and the budget variants' evaluations)",
         held_out=True, readers=("policy_evaluate", "policy_fixed", "ablation_bend", "ablation_perturb",
-                                "check_separation")),
+                                "robustness_evaluate", "check_separation")),
     "results/ablation/targets_offset.parquet": Source(
         ("ablation_offsets", *ABLATION_EVAL),
         "the offset targets fit the event offsets of the release rules, nothing else",
@@ -113,13 +120,32 @@ POLICY: dict[str, Source] = {
         ABLATION_EVAL,
         "the release-evaluation targets are read only by the rule comparison, never by an offset fit",
         held_out=True, readers=("ablation_rules", "check_separation")),
+    # The robustness variants' targets (uniform over the workspace; a continued run's training).
+    "results/robustness/uniform/targets_training.parquet": Source(
+        ("robustness_search_uniform", "robustness_evaluate", *ROBUSTNESS_REPORTS),
+        "the uniform training targets train the uniform variant's runs, nothing else",
+        readers=("robustness_search_uniform", "check_separation")),
+    "results/robustness/uniform/targets_selection.parquet": Source(
+        ("robustness_search_uniform", "robustness_fixed", "robustness_evaluate", *ROBUSTNESS_REPORTS),
+        "the uniform selection targets select the uniform variant's policies and fixed primitive",
+        readers=("robustness_search_uniform", "robustness_fixed", "check_separation")),
+    "results/robustness/uniform/targets_evaluation.parquet": Source(
+        ("robustness_fixed", "robustness_evaluate", *ROBUSTNESS_REPORTS),
+        "the uniform evaluation targets are read only by the uniform variant's final evaluation",
+        held_out=True, readers=("robustness_fixed", "robustness_evaluate", "check_separation")),
+    "results/robustness/targets_extension.parquet": Source(
+        ("robustness_search_longer", "robustness_evaluate", *ROBUSTNESS_REPORTS),
+        "the generations a continued run adds train on these targets, nothing else reads them",
+        readers=("robustness_search_longer", "check_separation")),
 }
 FILE_SOURCES = tuple(k for k, v in POLICY.items() if v.readers)
 WINDOW_ROLES = ("train", "validation", "sealed")
 TARGET_SETS = ("training", "selection", "evaluation")
 # Every simulated target set, by file: all pairwise disjoint (checks._target_violations).
 TARGET_FILES = (*(f"results/policy/targets_{n}.parquet" for n in TARGET_SETS),
-                "results/ablation/targets_offset.parquet", "results/ablation/targets_release.parquet")
+                "results/ablation/targets_offset.parquet", "results/ablation/targets_release.parquet",
+                *(f"results/robustness/uniform/targets_{n}.parquet" for n in TARGET_SETS),
+                "results/robustness/targets_extension.parquet")
 
 
 def label(rule: str, wildcards: dict) -> str:

@@ -185,6 +185,12 @@ def correlations(df: pd.DataFrame) -> dict:
         rho2_distance=_pearson(df.rho2, df.d_m),
         dphi_height=_pearson(df.dphi_deg, df.e_m),
         tau_distance=_pearson(df.tau_s, df.d_m),
+        # the paper's "distance" read as the horizontal radius r, and how d and height go together
+        # over the targets (on the arm's reach shell d falls as the target rises: docs/policy.md)
+        rho3_radius=_pearson(df.rho3, df.r_m),
+        rho2_radius=_pearson(df.rho2, df.r_m),
+        tau_radius=_pearson(df.tau_s, df.r_m),
+        targets_distance_height=_pearson(df.d_m, df.e_m),
     )
 
 

@@ -44,7 +44,8 @@ def _ours(s: dict) -> dict:
         "attach_p_shared_vs_centralised": _get(s, "attachment_tests", "centralised", "p"),
         "attach_5cm_best_centralised_seed": _get(s, "best_centralised", "attachment"),
     }
-    for k in ("rho3_height", "rho3_distance", "rho2_distance", "dphi_height", "tau_distance"):
+    for k in ("rho3_height", "rho3_distance", "rho2_distance", "dphi_height", "tau_distance", "rho3_radius",
+              "rho2_radius", "tau_radius", "targets_distance_height"):
         out[f"corr_{k}"] = _get(s, "selected", "correlations", k)
     for a in ("shared", "centralised", "centralised16", "unshared"):
         out[f"n_params_{a}"] = _get(s, "n_params", a)

@@ -9,6 +9,8 @@ training targets; after every generation the CMA-ES mean is scored on the select
 
 from __future__ import annotations
 
+import pickle
+
 import cma
 import numpy as np
 import pandas as pd
@@ -60,16 +62,29 @@ def score(sim, jobs: list[tuple[dict, Targets]]) -> np.ndarray:
 
 
 def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
-          ranges: dict, generations: int, popsize: int, sigma0: float, progress: bool = True) -> dict:
+          ranges: dict, generations: int, popsize: int, sigma0: float, progress: bool = True,
+          snapshots=(), resume: dict | None = None) -> dict:
     """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation.
 
     The held-out score of the mean after generation g rides in the batch of generation g + 1 (the
-    mean that generation samples around), so each generation is one batch of rollouts."""
+    mean that generation samples around), so each generation is one batch of rollouts.
+    snapshots: generation counts at which the selection so far is kept (`run["snapshots"]`): a run
+    stopped there selects exactly that policy, since CMA-ES does not depend on the total budget.
+    resume: a finished run (with its `state`) to continue up to `generations` (a larger budget).
+    The returned run carries `state` (bytes: the pickled CMA-ES object; pycma samples with
+    np.random.randn, and pickling that bound method takes the random state along, so a continuation
+    in another process draws what the longer run would have) for such a continuation; it is not JSON
+    and is written on its own."""
     npar = networks.n_params(arch)
-    es = cma.CMAEvolutionStrategy(np.zeros(npar), sigma0,
-                                  {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
-    curve, best = [], (-np.inf, None, 0)
-    per_gen = popsize * int((gen_of == 0).sum())
+    if resume is None:
+        es = cma.CMAEvolutionStrategy(np.zeros(npar), sigma0,
+                                      {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
+        curve, best, snaps = [], (-np.inf, None, 0), {}
+    else:  # the run's last held-out score is logged already
+        es = pickle.loads(resume["state"])
+        curve, snaps = [dict(c) for c in resume["curve"]], dict(resume.get("snapshots", {}))
+        best = (resume["selection_reward"], np.asarray(resume["theta"]), resume["selected_generation"])
+    per_gen = popsize * int((gen_of == gen_of.min()).sum())
     held_job = lambda: (policy_actions(arch, es.mean, select, norm, ranges), select)  # noqa: E731
 
     def log_held(held, mean):
@@ -77,23 +92,36 @@ def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select:
         curve[-1]["heldout_reward"] = held
         if held > best[0]:
             best = (held, mean, len(curve))
+        if len(curve) in snapshots:
+            snaps[str(len(curve))] = dict(selected_generation=best[2], selection_reward=best[0],
+                                          theta=best[1].tolist(), final_heldout_reward=held)
         bar.set_postfix(heldout=f"{held:.3f}")
 
-    bar = tqdm(range(generations), desc=f"{arch} seed {seed}", disable=not progress, mininterval=5)
+    pending = False  # the current mean's held-out score is not yet logged
+    bar = tqdm(range(len(curve), generations), desc=f"{arch} seed {seed}", disable=not progress, mininterval=5)
     for gen in bar:
         X = es.ask()
         T = train.take(np.flatnonzero(gen_of == gen))
         jobs = [(policy_actions(arch, x, T, norm, ranges), T) for x in X]
-        R = score(sim, jobs + [held_job()] if gen else jobs)
-        if gen:  # es.mean is still the mean after the previous generation
+        R = score(sim, jobs + [held_job()] if pending else jobs)
+        if pending:  # es.mean is still the mean after the previous generation
             log_held(float(R[-1]), np.array(es.mean))
         es.tell(X, list(-R[:popsize]))
+        pending = True
         curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=None,
                           train_reward_mean=float(R[:popsize].mean()), train_reward_best=float(R[:popsize].max())))
-    log_held(float(score(sim, [held_job()])[0]), np.array(es.mean))
+    if pending:
+        log_held(float(score(sim, [held_job()])[0]), np.array(es.mean))
     return dict(arch=arch, seed=seed, n_params=npar, evaluations_per_generation=per_gen, curve=curve,
                 selected_generation=best[2], selection_reward=best[0],
-                final_heldout_reward=curve[-1]["heldout_reward"], theta=best[1].tolist(), norm=norm)
+                final_heldout_reward=curve[-1]["heldout_reward"], theta=best[1].tolist(), norm=norm,
+                snapshots=snaps, state=pickle.dumps(es))
+
+
+def at_budget(run: dict, generations: int) -> dict:
+    """The run as if it had stopped after `generations` (one of its snapshots)."""
+    s = run["snapshots"][str(generations)]
+    return dict(run, curve=run["curve"][:generations], snapshots={}, **s)
 
 
 def outcomes(sim, act: dict, T: Targets, arch: str, seed: int) -> pd.DataFrame:

@@ -7,7 +7,8 @@ phi0 (the protocol's; each group rotated about the hanging axis n by phi0 - its 
 - Delta_str: median strike bearing minus commanded bearing;
 - the directional workspace: the largest recorded preload rho_i per commanded-bearing bin.
 Targets are strike-cloud points jittered and turned to a bearing on the evaluated arc, with their
-face normal against the incoming cup (as the rig's operator placed the block). Every set has its
+face normal against the incoming cup (as the rig's operator placed the block). The robustness
+variant draws them instead uniformly over the measured workspace (`sample_uniform`). Every set has its
 own seed; a target's id is a hash of its coordinates, so disjoint ids mean distinct targets.
 """
 
@@ -17,6 +18,7 @@ import hashlib
 
 import numpy as np
 import pandas as pd
+from scipy.spatial import Delaunay
 
 from .. import bearing as BR
 from ..cup import cup_from_axis
@@ -84,8 +86,41 @@ def sample(ws: dict, n_targets: int, seed: int, arc_deg: float, jitter_m: float)
     k = rng.integers(0, len(P), n_targets)
     p = P[k] + rng.normal(0, jitter_m, (n_targets, 3))
     turn = rng.uniform(-arc_deg / 2, arc_deg / 2, n_targets)
-    p, normal = BR.rotate(p, turn, n), BR.rotate(-D[k], turn, n)
+    return _frame(BR.rotate(p, turn, n), BR.rotate(-D[k], turn, n), n)
+
+
+def _frame(p: np.ndarray, normal: np.ndarray, n: np.ndarray) -> pd.DataFrame:
     df = pd.DataFrame(np.c_[p, normal], columns=["x", "y", "z", "nx", "ny", "nz"])
     df.insert(0, "bearing_deg", BR.bearing_deg(p, n))
     df.insert(0, "target_id", [target_id(q) for q in p])
     return df
+
+
+def radius_height(p: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """(N, 2): horizontal radius about the hanging axis and height along -n (the features r and e)."""
+    along = p @ n
+    return np.c_[np.linalg.norm(p - along[:, None] * n, axis=1), -along]
+
+
+def sample_uniform(ws: dict, n_targets: int, seed: int, arc_deg: float) -> pd.DataFrame:
+    """n targets uniform in volume over the measured workspace: the region of (radius, height) that
+    the recorded strikes span (their convex hull), swept over arc_deg of bearing centred on the
+    canonical strike bearing. Rejection sampling; the radius is accepted with probability r / r_max
+    (the volume element of a bearing sweep). The face normal is that of the nearest recorded strike
+    in (radius, height), so the block faces the cup as the operator would place it."""
+    rng = np.random.default_rng(seed)
+    P, D, n = (np.asarray(ws[k], float) for k in ("strike_points_m", "strike_dirs", "hanging_axis"))
+    rh = radius_height(P, n)
+    hull, lo, hi = Delaunay(rh), rh.min(0), rh.max(0)
+    out = np.empty((0, 2))
+    while len(out) < n_targets:
+        c = lo + (hi - lo) * rng.random((4 * n_targets, 2))
+        keep = (hull.find_simplex(c) >= 0) & (rng.random(len(c)) < c[:, 0] / hi[0])
+        out = np.r_[out, c[keep]]
+    out = out[:n_targets]
+    k = np.argmin(((out[:, None, :] - rh[None]) ** 2).sum(-1), axis=1)
+    # each point in the bearing plane of its nearest strike, then turned across the arc as `sample` does
+    radial = P[k] - (P[k] @ n)[:, None] * n
+    p = out[:, :1] * radial / np.linalg.norm(radial, axis=1, keepdims=True) - out[:, 1:] * n
+    turn = rng.uniform(-arc_deg / 2, arc_deg / 2, n_targets)
+    return _frame(BR.rotate(p, turn, n), BR.rotate(-D[k], turn, n), n)

@@ -1,0 +1,251 @@
+# Is the architecture ranking robust (docs/policy.md, "Robustness")? The benchmark of rules/policy.smk,
+# unchanged, against three variants: targets drawn uniformly over the measured workspace instead of
+# around recorded strikes, and smaller and larger evaluation budgets. A smaller budget is the policy
+# each run had selected at that point (CMA-ES does not depend on the total budget, so a run stopped
+# there selects exactly that); a larger one continues each run from its CMA-ES state on further
+# training targets. Results: results/robustness/{summary.json,claims.csv}, Fig. S1.
+
+ROB = "results/robustness"
+RCFG = PCFG["robustness"]
+GENERATIONS = PBUDGET["generations"]
+BUDGET_GENERATIONS = {
+    v: round(f * GENERATIONS) for v, f in RCFG["budget_factors"].items()
+}
+SHORTER = [v for v, g in BUDGET_GENERATIONS.items() if g < GENERATIONS]
+LONGER = [v for v, g in BUDGET_GENERATIONS.items() if g > GENERATIONS]
+ROB_VARIANTS = ["uniform", *BUDGET_GENERATIONS]
+UNIFORM_TARGETS = {
+    n: f"{ROB}/uniform/targets_{n}.parquet"
+    for n in ("training", "selection", "evaluation")
+}
+
+
+wildcard_constraints:
+    variant="|".join(ROB_VARIANTS),
+    longer="|".join(LONGER) or "-",
+
+
+def rob_run(wc):
+    """The run a variant evaluates: its own search, or the benchmark's run for a smaller budget."""
+    if wc.variant in SHORTER:
+        return f"{POL}/runs/{wc.arch}_seed{wc.seed}.json"
+    return f"{ROB}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
+
+
+def rob_targets(name):
+    """A variant's target set: the uniform ones, or the benchmark's."""
+    return lambda wc: (
+        UNIFORM_TARGETS[name]
+        if wc.variant == "uniform"
+        else f"{POL}/targets_{name}.parquet"
+    )
+
+
+def rob_evals(variant):
+    return [f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
+
+
+rule robustness_targets:
+    """Uniform workspace targets (training per generation, selection, evaluation; a seed each) and the
+    training targets of the generations the continued runs add (up to the largest budget).
+    """
+    input:
+        workspace=f"{POL}/workspace.json",
+        code=imports("robustness_targets"),
+    output:
+        **{f"uniform_{n}": f for n, f in UNIFORM_TARGETS.items()},
+        extension=f"{ROB}/targets_extension.parquet",
+    log:
+        "logs/robustness/targets.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        uniform_sizes=dict(
+            training=GENERATIONS * PBUDGET["targets_per_candidate"],
+            selection=PBUDGET["selection_targets"],
+            evaluation=PBUDGET["evaluation_targets"],
+        ),
+        extension=(
+            GENERATIONS,
+            max([BUDGET_GENERATIONS[v] for v in LONGER], default=GENERATIONS),
+        ),
+        per_generation=PBUDGET["targets_per_candidate"],
+        seeds=RCFG["target_seeds"],
+        arc_deg=PCFG["arc_deg"],
+        jitter_m=PCFG["target_jitter_m"],
+    script:
+        "../workflow_scripts/robustness_targets.py"
+
+
+rule robustness_search_uniform:
+    """The benchmark's CMA-ES run for one architecture and seed, on uniform workspace targets."""
+    input:
+        **SIMULATOR,
+        training=UNIFORM_TARGETS["training"],
+        selection=UNIFORM_TARGETS["selection"],
+        code=imports("policy_search"),
+    output:
+        run=f"{ROB}/uniform/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{ROB}/uniform/runs/{{arch}}_seed{{seed}}.cma.pkl",
+    log:
+        "logs/robustness/search_uniform_{arch}_seed{seed}.log",
+    benchmark:
+        "benchmarks/robustness/search_uniform_{arch}_seed{seed}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        arch=lambda wc: wc.arch,
+        seed=lambda wc: int(wc.seed),
+        generations=GENERATIONS,
+        popsize=PBUDGET["popsize"],
+        snapshots=[],
+    script:
+        "../workflow_scripts/policy_search.py"
+
+
+rule robustness_search_longer:
+    """The benchmark's run continued from its CMA-ES state to a larger budget."""
+    input:
+        **SIMULATOR,
+        resume=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
+        resume_state=f"{POL}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+        training=f"{ROB}/targets_extension.parquet",
+        selection=f"{POL}/targets_selection.parquet",
+        code=imports("policy_search"),
+    output:
+        run=f"{ROB}/{{longer}}/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{ROB}/{{longer}}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+    log:
+        "logs/robustness/search_{longer}_{arch}_seed{seed}.log",
+    benchmark:
+        "benchmarks/robustness/search_{longer}_{arch}_seed{seed}.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        arch=lambda wc: wc.arch,
+        seed=lambda wc: int(wc.seed),
+        generations=lambda wc: BUDGET_GENERATIONS[wc.longer],
+        popsize=PBUDGET["popsize"],
+        snapshots=[],
+    script:
+        "../workflow_scripts/policy_search.py"
+
+
+rule robustness_fixed:
+    """The best fixed primitive, selected and evaluated on the uniform targets."""
+    input:
+        **SIMULATOR,
+        selection=UNIFORM_TARGETS["selection"],
+        evaluation=UNIFORM_TARGETS["evaluation"],
+        code=imports("policy_fixed"),
+    output:
+        eval=f"{ROB}/uniform/eval/fixed.parquet",
+        summary=f"{ROB}/uniform/fixed.json",
+    log:
+        "logs/robustness/fixed.log",
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        seed=config["seed"],
+    script:
+        "../workflow_scripts/policy_fixed.py"
+
+
+rule robustness_evaluate:
+    """A variant's selected policy of one run on that variant's evaluation targets."""
+    input:
+        **SIMULATOR,
+        run=rob_run,
+        evaluation=rob_targets("evaluation"),
+        code=imports("policy_evaluate"),
+    output:
+        f"{ROB}/{{variant}}/eval/{{arch}}_seed{{seed}}.parquet",
+    log:
+        "logs/robustness/evaluate_{variant}_{arch}_seed{seed}.log",
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        generations=lambda wc: (
+            BUDGET_GENERATIONS[wc.variant] if wc.variant in SHORTER else None
+        ),
+    script:
+        "../workflow_scripts/policy_evaluate.py"
+
+
+rule robustness_summary:
+    """Each variant summarised as the benchmark is (reward, Mann-Whitney tests, attachment), with the
+    ranking of the four architectures and whether it is the benchmark's."""
+    input:
+        benchmark_runs=POLICY_RUNS,
+        benchmark_evals=POLICY_EVALS,
+        benchmark_fixed=f"{POL}/eval/fixed.parquet",
+        uniform_runs=[f"{ROB}/uniform/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF],
+        uniform_fixed=f"{ROB}/uniform/eval/fixed.parquet",
+        longer_runs=[
+            f"{ROB}/{v}/runs/{a}_seed{s}.json"
+            for v in LONGER
+            for a, s in POLICY_RUNS_OF
+        ],
+        evals=[f for v in ROB_VARIANTS for f in rob_evals(v)],
+        code=imports("robustness_summary"),
+    output:
+        f"{ROB}/summary.json",
+    log:
+        "logs/robustness/summary.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        variants=ROB_VARIANTS,
+        budget_generations=BUDGET_GENERATIONS,
+        generations=GENERATIONS,
+        tolerances=PCFG["tolerances_m"],
+        d_f=PCFG["reward"]["d_f_m"],
+        v_min=PCFG["reward"]["v_min_sim_mps"],
+        evaluations_per_generation=PBUDGET["popsize"] * PBUDGET["targets_per_candidate"],
+        protocol=protocol_params("primitive"),
+    script:
+        "../workflow_scripts/robustness_summary.py"
+
+
+rule fig_robustness:
+    """Fig. S1: final held-out reward and attachment at 5 cm per architecture, benchmark and variants."""
+    input:
+        summary=f"{ROB}/summary.json",
+        code=imports("fig_robustness"),
+    output:
+        pdf="results/figs/figS1_robustness.pdf",
+        png=report(
+            "results/figs/figS1_robustness.png",
+            caption="../report/figS1_robustness.rst",
+            category="Policy",
+        ),
+    log:
+        "logs/fig_robustness.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/fig_robustness.py"
+
+
+rule table_robustness_claims:
+    """The architecture result on each variant beside the paper's benchmark values."""
+    input:
+        summary=f"{ROB}/summary.json",
+        reference="reference/paper_values.yaml",
+        code=imports("robustness_claims"),
+    output:
+        f"{ROB}/claims.csv",
+    log:
+        "logs/robustness/claims.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/robustness_claims.py"
