@@ -6,7 +6,7 @@ from test_policy import RANGES, ToySim, _workspace
 
 from embodied_snap import bearing as BR
 from embodied_snap.policy import geometry, robustness, search, targets
-from embodied_snap.reference import paper_values
+from embodied_snap.reference import paper_column, paper_values
 
 N = np.array([0.0, -1.0, 0.0])
 
@@ -76,7 +76,7 @@ def test_rankings_and_whether_they_hold():
         x["ranking_attachment_holds"] = x["ranking_attachment"] == base["ranking_attachment"]
         out[v] = x
     assert out["uniform"]["ranking_reward"] == ["centralised", "shared"]
-    rows = {r["claim_id"]: r for r in robustness.claim_rows(out, paper_values()["policy"])}
+    rows = {r["claim_id"]: r for r in robustness.claim_rows(out, paper_column("policy"))}
     assert rows["uniform.ranking_reward_holds"]["ours"] == "no"
     assert rows["benchmark.ranking_reward_holds"]["ours"] == "yes"
     assert rows["uniform.ranking_attach_5cm_holds"]["ours"] == "yes"

@@ -56,10 +56,10 @@ def summarize_variants(benchmark_runs, runs_of: dict, evals_of: dict, fixed_of: 
 
 def claim_rows(summary: dict, paper: dict) -> list[dict]:
     """Rows of results/robustness/claims.csv: each variant's architecture result. paper: the policy
-    section of reference/paper_values.yaml; the variants are not in the paper, so the reference
+    section's paper column (reference.paper_column("policy")); the variants are not in the paper, so the reference
     column is the paper's benchmark (its rankings derived from its values, where it gives them)."""
     def ref(key):
-        return paper.get(key, {}).get("paper")
+        return paper.get(key)
 
     def pair(key):
         return None if ref(f"{key}_mean") is None else [ref(f"{key}_mean"), ref(f"{key}_sd")]
