@@ -76,6 +76,7 @@ def test_rankings_and_whether_they_hold():
         x["ranking_attachment_holds"] = x["ranking_attachment"] == base["ranking_attachment"]
         out[v] = x
     assert out["uniform"]["ranking_reward"] == ["centralised", "shared"]
+    assert robustness.ranking({"a": 0.0, "b": 0.5, "c": 0.0}) == ["b", "a = c"]
     rows = {r["claim_id"]: r for r in robustness.claim_rows(out, paper_column("policy"))}
     assert rows["uniform.ranking_reward_holds"]["ours"] == "no"
     assert rows["benchmark.ranking_reward_holds"]["ours"] == "yes"

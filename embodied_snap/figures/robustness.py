@@ -21,7 +21,7 @@ def _title(v: str, x: dict) -> str:
 def plot_robustness(s: dict, pdf: str, png: str) -> None:
     style.setup()
     fig, axes = plt.subplots(2, 1, figsize=(style.TEXT_WIDTH_IN, 3.6), sharex=True)
-    fig.subplots_adjust(left=0.08, right=0.99, bottom=0.14, top=0.93, hspace=0.12)
+    fig.subplots_adjust(left=0.11, right=0.99, bottom=0.14, top=0.88, hspace=0.12)
     variants = list(s)
     archs = s[variants[0]]["archs"]
     w = 0.8 / len(archs)
@@ -44,11 +44,14 @@ def plot_robustness(s: dict, pdf: str, png: str) -> None:
         p = s[v]["reward_tests"].get("centralised", {}).get("p")
         holds = "ranking holds" if s[v]["ranking_reward_holds"] else "ranking differs"
         txt = (f"p = {p:.3g}" if p is not None else "p n/a") + (f"; {holds}" if i else "")
-        axes[0].text(i, 1.01, txt, transform=axes[0].get_xaxis_transform(), ha="center", va="bottom", fontsize=6.5)
+        axes[0].text(i, 0.98, txt, transform=axes[0].get_xaxis_transform(), ha="center", va="top", fontsize=6.5)
     axes[1].set_xticks(range(len(variants)), [_title(v, s[v]) for v in variants])
     axes[1].set_xlim(-0.5, len(variants) - 0.5)
     axes[1].set_ylim(0, 1)
-    axes[0].legend(loc="lower left", ncol=len(archs), handlelength=1, framealpha=1, edgecolor="none", fontsize=7)
+    lo, hi = axes[0].get_ylim()
+    axes[0].set_ylim(lo, hi + 0.15 * (hi - lo))  # room for the p-values
+    h, lab = axes[0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="upper center", ncol=len(archs), handlelength=1, frameon=False, fontsize=7)
     style.panel_label(axes[0], "a")
     style.panel_label(axes[1], "b")
     style.save(fig, pdf, png)

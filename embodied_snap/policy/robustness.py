@@ -18,9 +18,16 @@ KEEP = ("archs", "budget_evaluations", "seeds", "reward", "reward_tests", "attac
         "reach")
 
 
-def ranking(means: dict) -> list[str]:
-    """Architectures by mean, best first (ties keep the table order)."""
-    return sorted((a for a in means if means[a] is not None), key=lambda a: -means[a])
+def ranking(means: dict, tie: float = 1e-9) -> list[str]:
+    """Architectures by mean, best first; equal means (within `tie`) share a place, "a = b"."""
+    order = sorted((a for a in means if means[a] is not None), key=lambda a: -means[a])
+    places: list[list[str]] = []
+    for a in order:
+        if places and abs(means[places[-1][0]] - means[a]) <= tie:
+            places[-1].append(a)
+        else:
+            places.append([a])
+    return [" = ".join(sorted(p, key=order.index)) for p in places]
 
 
 def variant(runs, evals, fixed, tolerances, d_f, v_min, budget_evaluations, timing_s) -> dict:
