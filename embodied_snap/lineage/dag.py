@@ -41,14 +41,24 @@ def _workflow(workdir, configfiles, config_overrides):
         os.chdir(cwd)
 
 
+def _threads(r) -> int | None:
+    t = r.resources.get("_cores")
+    t = getattr(t, "value", t)
+    return t if isinstance(t, int) else None
+
+
 def rule_table(workdir=".", configfiles=None, config_overrides=None) -> dict[str, dict]:
-    """{rule: {script: file name or None, code: its named input `code` (when not a function)}}."""
+    """{rule: {script: file name or None, code: its named input `code` (when not a function),
+    benchmark: the regex of its benchmark path or None, threads: its `threads:` (None when a
+    function)}}."""
     with _workflow(workdir, configfiles, config_overrides) as wf_api:
         out = {}
         for r in wf_api._workflow.rules:
             code = getattr(r.input, "code", None)
             out[r.name] = dict(script=Path(r.script).name if r.script else None,
-                               code=None if code is None or callable(code) else [_norm(f) for f in code])
+                               code=None if code is None or callable(code) else [_norm(f) for f in code],
+                               benchmark=r.benchmark.regex().pattern if r.benchmark else None,
+                               threads=_threads(r))
         return out
 
 
