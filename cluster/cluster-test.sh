@@ -67,6 +67,7 @@ cleanup() {
         fi
     done
     for pid in "${PIDS[@]}"; do kill "$pid" 2>/dev/null || true; done
+    [ "$(readlink /etc/slurm/slurm.conf 2>/dev/null)" = "$W/slurm.conf" ] && rm -f /etc/slurm/slurm.conf
     if [ "${KEEP:-0}" = 1 ] || [ $rc != 0 ]; then say "scratch folder kept: $W"; else rm -rf "$W"; fi
     exit $rc
 }
@@ -111,7 +112,17 @@ SelectTypeParameters=CR_CPU_Memory
 $NODE NodeAddr=127.0.0.1 State=UNKNOWN
 PartitionName=main Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 EOF
-export SLURM_CONF="$W/slurm.conf"
+# At the default path: the job-step plugin starts each job's srun without SLURM_* variables, so
+# SLURM_CONF would not reach it. A slurm.conf that is not ours is never touched.
+ETC=/etc/slurm/slurm.conf
+if [ -e "$ETC" ] || [ -L "$ETC" ]; then
+    readlink "$ETC" | grep -q '^/tmp/esnap-cluster\.' ||
+        die "$ETC exists (a real cluster's?): run this on a machine without one"
+    rm -f "$ETC"  # left by an earlier run that was killed
+fi
+mkdir -p /etc/slurm
+ln -s "$W/slurm.conf" "$ETC"
+export SLURM_CONF="$ETC"
 
 # --- 3. daemons ---------------------------------------------------------------------------------
 munged --force --socket="$W/munge.socket" --key-file="$W/munge.key" --pid-file="$W/munged.pid" \
