@@ -77,7 +77,7 @@ def test_profile_groups_and_rules_exist(table):
     prof = yaml.safe_load(PROFILE.read_text())
     assert prof["executor"] == "slurm" and prof["slurm-status-command"] == "squeue"
     assert set(prof["groups"]) <= set(table)
-    assert set(prof["group-components"]) <= set(prof["groups"].values())
+    assert set(prof.get("group-components", {})) <= set(prof["groups"].values())
 
 
 @pytest.mark.parametrize("device,gpu", [("cuda", 1), ("cpu", 0)])
