@@ -4,7 +4,7 @@ PY := $(VENV)/bin/python
 BUDGET ?= paper
 CORES ?= 2
 
-.PHONY: paper test install lint format clean
+.PHONY: paper test install lint format clean cluster-test
 
 $(VENV)/.installed: pyproject.toml requirements.lock
 	python3 -m venv $(VENV)
@@ -22,6 +22,11 @@ paper: install
 
 test: install
 	$(VENV)/bin/pytest -q
+
+# A one-node SLURM cluster on this machine (root; installs slurm and munge from Debian if missing):
+# the smoke DAG through profiles/slurm, compared with a local run (docs/cluster.md).
+cluster-test: install
+	VENV=$(VENV) bash cluster/cluster-test.sh
 
 lint: install
 	$(VENV)/bin/snakemake --lint

@@ -157,6 +157,29 @@ def cmd_prov(a) -> int:
     return 0
 
 
+def cmd_resources(a) -> int:
+    from .lineage.dag import rule_table
+    from .resources import ResourceError, render, set_resources, updated_profile
+
+    try:
+        res = set_resources(a.benchmarks, rule_table(a.root))
+    except ResourceError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    profile = Path(a.profile)
+    old = profile.read_text()
+    new = updated_profile(old, render(res))
+    if a.check:
+        if new != old:
+            print(f"{profile}: set-resources differ from {a.benchmarks} (run esnap resources)", file=sys.stderr)
+            return 1
+        print(f"{profile}: set-resources match {a.benchmarks}")
+        return 0
+    profile.write_text(new)
+    print(f"{profile}: set-resources of {len(res)} rules from {a.benchmarks}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="esnap", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -201,6 +224,13 @@ def main(argv: list[str] | None = None) -> int:
     pr.add_argument("--root", default=".")
     pr.add_argument("--out", default="results/lineage/prov.json")
     pr.set_defaults(fn=cmd_prov)
+
+    rs = sub.add_parser("resources", help="write the SLURM profile's set-resources from a paper run's benchmarks")
+    rs.add_argument("--benchmarks", default="benchmarks", help="benchmarks/ of a paper-budget run")
+    rs.add_argument("--profile", default="profiles/slurm/config.yaml")
+    rs.add_argument("--root", default=".", help="the workflow (its rules' benchmarks and threads)")
+    rs.add_argument("--check", action="store_true", help="only compare; exit 1 when the profile differs")
+    rs.set_defaults(fn=cmd_resources)
 
     a = p.parse_args(argv)
     return a.fn(a)

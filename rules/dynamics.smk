@@ -36,8 +36,12 @@ rule dynamics_train:
     conda:
         "../envs/esnap.yaml"
     threads: DCFG["threads"]
+    resources:
+        # one GPU from the cluster when the config trains on cuda (profiles/slurm: --gpus=1)
+        gpu=int(DCFG["device"] == "cuda"),
     params:
         seed=lambda wc: int(wc.seed),
+        device=DCFG["device"],
         epochs=BUDGET["dynamics"]["epochs"],
         windows_per_epoch=BUDGET["dynamics"]["windows_per_epoch"],
         lr=DCFG["lr"],

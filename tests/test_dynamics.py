@@ -158,12 +158,19 @@ def test_tiny_training_reduces_loss(windows, trained):
     assert [r["epoch"] for r in curve] == [1, 2, 3, 4]
 
 
-def test_training_is_deterministic(windows, trained):
+def test_training_is_deterministic(windows, trained, monkeypatch):
+    """... also when config dynamics.device is cuda on a machine without a GPU: the same model, on
+    CPU, and one log line saying so; the rollouts fall back the same way."""
     tr, va = windows
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    lines = []
     m2, _ = T.train(tr, va, seed=0, epochs=4, windows_per_epoch=256, val_windows=128,
-                    batch_size=64, lr=3e-3, patience=10, log=lambda r: None)
+                    batch_size=64, lr=3e-3, patience=10, device="cuda", log=lines.append)
     for a, b in zip(trained[0].state_dict().values(), m2.state_dict().values()):
         torch.testing.assert_close(a, b, atol=0, rtol=0)
+    said = [x for x in lines if isinstance(x, str)]
+    assert len(said) == 1 and "no GPU is visible: running on cpu" in said[0]
+    assert Ensemble(models=[m2], device="cuda").device == "cpu"
 
 
 def test_carried_state_vs_reencoded_window(windows, trained):

@@ -15,6 +15,9 @@ rule a:
 rule c:
     input: expand("a_{x}.txt", x=(1, 2)), code=["m.py"]
     output: "c.txt"
+    benchmark: "benchmarks/c.tsv"
+    threads: 3
+    resources: gpu=1, mem_mb=lambda wc: 5
     script: "s.py"
 '''
 
@@ -35,5 +38,8 @@ def test_build_dag_reads_jobs_and_edges(tmp_path):
 def test_rule_table_reads_scripts_and_code(tmp_path):
     (tmp_path / "Snakefile").write_text(SNAKEFILE)
     t = rule_table(tmp_path)
-    assert t["c"] == {"script": "s.py", "code": ["m.py"]}
-    assert t["a"] == {"script": None, "code": None}
+    assert {k: t["c"][k] for k in ("script", "code", "benchmark", "threads")} == {
+        "script": "s.py", "code": ["m.py"], "benchmark": r"benchmarks/c\.tsv$", "threads": 3}
+    assert t["c"]["resources"]["gpu"] == 1 and "mem_mb" not in t["c"]["resources"]  # a function: per job
+    assert {k: t["a"][k] for k in ("script", "code", "benchmark", "threads")} == {
+        "script": None, "code": None, "benchmark": None, "threads": 1}

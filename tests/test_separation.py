@@ -1,6 +1,8 @@
 """esnap check-separation: every kind of leak of docs/design.md section 3, injected and caught, on
 the records and on a tiny Snakemake DAG; the policy is an allow list that names every rule."""
 
+import json
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -438,3 +440,22 @@ def test_records_in_another_raw_directory(tmp_path):
     # through check(): the raw directory comes from the config given
     r = check(tmp_path, static=False, config_overrides={"raw_data": {"dir": "recordings/lab2"}})
     assert r["violations"] == v and r["raw_dir"] == "recordings/lab2"
+
+
+def test_records_from_several_hosts(tmp_path):
+    """A cluster run: the records of one run name several hosts (each job's node); the proof reads
+    them all alike, and still finds a leak."""
+    _run(tmp_path)
+    recs = sorted((tmp_path / pv.RECORDS_DIR).glob("*/*.json"))
+    for i, f in enumerate(recs):
+        rec = json.loads(f.read_text())
+        rec["host"] = f"node-{i % 3}"
+        f.write_text(json.dumps(rec))
+    assert check(tmp_path, static=False, config_overrides={})["ok"]
+    _run(tmp_path / "leak", shard_extra={"dynamics_train-00": ["dly_0001"]})
+    for i, f in enumerate(sorted((tmp_path / "leak" / pv.RECORDS_DIR).glob("*/*.json"))):
+        rec = json.loads(f.read_text())
+        rec["host"] = f"node-{i % 3}"
+        f.write_text(json.dumps(rec))
+    v = check(tmp_path / "leak", static=False, config_overrides={})["violations"]
+    assert len(v) == 1 and "was fed by delay_sweep group dly_0001" in v[0]

@@ -18,7 +18,7 @@ with tracked(snakemake):
         load_windows(snakemake.input.train),
         load_windows(snakemake.input.validation),
         seed=p.seed, epochs=p.epochs, windows_per_epoch=p.windows_per_epoch, val_windows=p.val_windows,
-        batch_size=p.batch_size, lr=p.lr, patience=p.patience,
+        batch_size=p.batch_size, lr=p.lr, patience=p.patience, device=p.device,
         log=lambda r: print(r, file=sys.stderr, flush=True),
     )
     best = min(curve, key=lambda r: r["val_loss"])

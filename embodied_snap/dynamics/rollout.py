@@ -32,16 +32,15 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from .device import resolve
 from .model import TIP, load
-
-
-def default_device() -> str:
-    return "cuda" if torch.cuda.is_available() else "cpu"
 
 
 class Ensemble:
     def __init__(self, paths=(), device: str | None = None, models=None):
-        self.device = device or default_device()
+        # config dynamics.device where a job passes it; CPU otherwise (a rollout job asks SLURM
+        # for no GPU). "cuda" without a GPU falls back to CPU with one log line.
+        self.device = resolve(device or "cpu")
         self.models = list(models) if models is not None else [load(p, self.device) for p in paths]
         g = self.models[0].gru
         self.H, self.layers, self.n_in = g.hidden_size, g.num_layers, g.input_size

@@ -13,6 +13,7 @@ import time
 import numpy as np
 import torch
 
+from .device import resolve
 from .model import TIP, Dynamics, norm_stats
 
 SNAP_FACTOR, FAST_FACTOR = 5.0, 3.0
@@ -50,6 +51,10 @@ def batch(W: dict, anchors: np.ndarray, horizon: int | None = None):
     return torch.from_numpy(X[xi]), torch.from_numpy(U[ui]), torch.from_numpy(X[ti])
 
 
+def _on(device, *ts):
+    return [t.to(device) for t in ts]
+
+
 def prepare(W: dict) -> dict:
     W = dict(W)
     W["_start"] = group_start(W["group"])
@@ -58,10 +63,9 @@ def prepare(W: dict) -> dict:
 
 
 def rollout_loss(model: Dynamics, W: dict, idx: np.ndarray, wh: torch.Tensor) -> torch.Tensor:
-    xs, us, y = batch(W, W["anchors"][idx])
+    xs, us, y, f = _on(wh.device, *batch(W, W["anchors"][idx]), torch.from_numpy(W["factor"][idx]))
     pred = model.rollout(xs, us, y.shape[1])
     e = ((pred - y) / model.x_sd) ** 2  # normalised squared error (B, H, 21)
-    f = torch.from_numpy(W["factor"][idx])
     per = (e.mean(-1) * wh).mean(-1)  # (B,)
     return (per * f).sum() / f.sum()
 
@@ -72,10 +76,9 @@ def evaluate_loss(model, W, idx, wh, bs=1024):
     num = den = tip = 0.0
     for i in range(0, len(idx), bs):
         j = idx[i:i + bs]
-        xs, us, y = batch(W, W["anchors"][j])
+        xs, us, y, f = _on(wh.device, *batch(W, W["anchors"][j]), torch.from_numpy(W["factor"][j]))
         pred = model.rollout(xs, us, y.shape[1])
         e = ((pred - y) / model.x_sd) ** 2
-        f = torch.from_numpy(W["factor"][j])
         num += float(((e.mean(-1) * wh).mean(-1) * f).sum())
         den += float(f.sum())
         tip += float((pred[:, -1, TIP] - y[:, -1, TIP]).norm(dim=-1).sum()) * 1e3
@@ -98,18 +101,21 @@ def train(
     batch_size: int,
     lr: float,
     patience: int,
+    device: str = "cpu",
     log=print,
 ) -> tuple[Dynamics, list[dict]]:
-    """Fit one seed (sizes and optimiser settings: config `dynamics` and the budget's). Returns the
-    model of the best validation epoch and the learning curve."""
+    """Fit one seed (sizes and optimiser settings: config `dynamics` and the budget's) on `device`
+    (config dynamics.device; device.resolve falls back to CPU). Returns the model of the best
+    validation epoch, on CPU, and the learning curve."""
+    device = resolve(device, log)
     seed_all(seed)
     rng = np.random.default_rng(seed)
     Wtr, Wva = prepare(Wtr), prepare(Wva)
     # Normalisation from the training split only; the look-ahead is the windows'.
-    model = Dynamics(norm_stats(Wtr["X"], Wtr["U"], Wtr["group"]), int(Wtr["lookahead"]))
+    model = Dynamics(norm_stats(Wtr["X"], Wtr["U"], Wtr["group"]), int(Wtr["lookahead"])).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
-    wh = step_weights(int(Wtr["horizon"]))
+    wh = step_weights(int(Wtr["horizon"])).to(device)
     # The same validation windows for every seed and epoch (seeded apart from the model seed).
     nva = len(Wva["anchors"])
     val_idx = np.sort(np.random.default_rng(0).choice(nva, min(val_windows, nva), replace=False))
@@ -141,4 +147,4 @@ def train(
             if bad >= patience:
                 break
     model.load_state_dict(best_state)
-    return model.eval(), curve
+    return model.cpu().eval(), curve

@@ -89,7 +89,7 @@ def audit(result: str, root=".", config: dict | None = None) -> dict:
         jobs.append(dict(label=label(rec["rule"], rec.get("wildcards", {})), rule=rec["rule"],
                          wildcards=rec.get("wildcards", {}), record=rec["_record"],
                          finished=rec.get("finished"), code_version=rec.get("code_version"),
-                         gate=gate))
+                         host=rec.get("host"), gate=gate))
         # A gate vouches only for its outputs; its inputs are not RESULT's lineage.
         entries = rec.get("outputs", []) + ([] if gate else rec.get("inputs", []) + rec.get("code", []))
         for e in entries:
@@ -145,6 +145,7 @@ def audit(result: str, root=".", config: dict | None = None) -> dict:
         given_unread=sorted(set(unread) - set(fed)),
         other_sources=dict(sorted(other_sources.items())),
         jobs=jobs,
+        hosts=sorted({j["host"] for j in jobs if j["host"]}),  # a cluster run's jobs ran on several
         excluded=_excluded(root),
         elapsed_s=round(time.perf_counter() - t0, 3),
     )
@@ -194,6 +195,8 @@ def format_audit(report: dict, hashes: bool = False) -> str:
             L.append(f"  {p}: no provenance record")
     else:
         L.append("stale: no (every recorded hash matches the disk)")
+    if len(r.get("hosts", ())) > 1:
+        L.append(f"jobs ran on {len(r['hosts'])} hosts: {', '.join(r['hosts'])}")
     fed = {k: s for k, s in r["evidence_sets"].items() if s["n_fed"]}
     L.append(f"fed by {r['n_groups_fed']} raw group(s) from {len(fed)} evidence set(s):")
     for es, s in fed.items():

@@ -41,14 +41,33 @@ def _workflow(workdir, configfiles, config_overrides):
         os.chdir(cwd)
 
 
+def _plain(res):
+    """A rule's resource as declared: its number, or None when a function computes it per job."""
+    try:
+        return getattr(res, "value", res)
+    except ValueError:  # Snakemake: "must be evaluated within the context of a rule"
+        return None
+
+
+def _threads(r) -> int | None:
+    t = _plain(r.resources.get("_cores"))
+    return t if isinstance(t, int) else None
+
+
 def rule_table(workdir=".", configfiles=None, config_overrides=None) -> dict[str, dict]:
-    """{rule: {script: file name or None, code: its named input `code` (when not a function)}}."""
+    """{rule: {script: file name or None, code: its named input `code` (when not a function),
+    benchmark: the regex of its benchmark path or None, threads: its `threads:` (None when a
+    function), resources: its declared resources that are plain numbers}}."""
     with _workflow(workdir, configfiles, config_overrides) as wf_api:
         out = {}
         for r in wf_api._workflow.rules:
             code = getattr(r.input, "code", None)
             out[r.name] = dict(script=Path(r.script).name if r.script else None,
-                               code=None if code is None or callable(code) else [_norm(f) for f in code])
+                               code=None if code is None or callable(code) else [_norm(f) for f in code],
+                               benchmark=r.benchmark.regex().pattern if r.benchmark else None,
+                               threads=_threads(r),
+                               resources={k: v for k, v in ((k, _plain(v)) for k, v in r.resources.items())
+                                          if not k.startswith("_") and isinstance(v, int)})
         return out
 
 

@@ -179,7 +179,13 @@ def _atomic_text(path: Path, text: str) -> None:
     try:
         with os.fdopen(fd, "w") as f:
             f.write(text)
-        os.replace(tmp, path)  # atomic: a reader sees the old file or the new, never half
+            # On a shared file system (NFS, Lustre) another node must never see the new name
+            # before its bytes: flush them to the server first.
+            f.flush()
+            os.fsync(f.fileno())
+        # atomic, also when jobs on several nodes write at once: a reader sees the old file or
+        # the new, never half (the temporary name is unique per writer, in the same folder)
+        os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise

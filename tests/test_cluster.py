@@ -1,0 +1,116 @@
+"""The cluster path without a cluster: the SLURM profile's resources come from measurements (and
+`esnap resources` reproduces them), its rules exist, a GPU is asked for exactly when the config
+trains on cuda, and the code falls back to CPU when there is none. `make cluster-test` runs the
+real thing (docs/cluster.md)."""
+
+import shutil
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+import torch
+import yaml
+
+from embodied_snap import resources as R
+from embodied_snap.cli import main
+from embodied_snap.dynamics import device as D
+from embodied_snap.lineage.dag import rule_table
+
+REPO = Path(__file__).resolve().parents[1]
+PROFILE = REPO / "profiles/slurm/config.yaml"
+# Copies of a paper-budget run's benchmark files: for each benchmarked rule, the files holding its
+# longest wall time and its largest RSS (the maxima set-resources is computed from).
+BENCH = REPO / "tests/data/benchmarks"
+
+
+@pytest.fixture(scope="module")
+def table():
+    return rule_table(REPO)
+
+
+def test_profile_set_resources_reproduced_from_benchmarks(capsys):
+    assert main(["resources", "--benchmarks", str(BENCH), "--profile", str(PROFILE), "--root", str(REPO),
+                 "--check"]) == 0, capsys.readouterr().err
+
+
+def test_resources_rewrite_only_the_generated_part(tmp_path, table):
+    prof = tmp_path / "config.yaml"
+    head = PROFILE.read_text().split(R.MARKER)[0]
+    prof.write_text(head + R.MARKER + "\nset-resources:\n  dynamics_train: {mem_mb: 1}\n")
+    assert main(["resources", "--benchmarks", str(BENCH), "--profile", str(prof), "--root", str(REPO),
+                 "--check"]) == 1
+    assert main(["resources", "--benchmarks", str(BENCH), "--profile", str(prof), "--root", str(REPO)]) == 0
+    assert prof.read_text() == PROFILE.read_text()
+
+
+def test_margins():
+    # 438 s, 690 MB (the paper run's GRU training): 2x the time, 1.5x the memory in 100 MB steps
+    assert R.rule_resources(438.03, 690.12, 3) == dict(mem_mb=1100, runtime=15, cpus_per_task=3)
+    # seconds-long jobs get the floors
+    assert R.rule_resources(2.7, 200.0, 1) == dict(mem_mb=R.MEM_MIN, runtime=R.RUNTIME_MIN, cpus_per_task=1)
+
+
+def test_every_benchmarked_rule_has_resources_and_threads(table):
+    res = yaml.safe_load(PROFILE.read_text())["set-resources"]
+    assert set(res) == {r for r, t in table.items() if t["benchmark"]}
+    for r, v in res.items():
+        assert v["cpus_per_task"] == table[r]["threads"], r
+
+
+def test_bad_benchmark_trees(tmp_path, table):
+    patterns = {r: t["benchmark"] for r, t in table.items() if t["benchmark"]}
+    shutil.copytree(BENCH, tmp_path / "b")
+    for f in (tmp_path / "b/dynamics").glob("*.tsv"):
+        f.unlink()
+    with pytest.raises(R.ResourceError, match="dynamics_train"):
+        R.measure(tmp_path / "b", patterns)
+    shutil.copytree(BENCH, tmp_path / "c")
+    (tmp_path / "c/old_rule.tsv").write_text((BENCH / "twin_phenomena.tsv").read_text())
+    with pytest.raises(R.ResourceError, match="old_rule.tsv: matches no rule"):
+        R.measure(tmp_path / "c", patterns)
+    (tmp_path / "c/old_rule.tsv").write_text("not a benchmark\n")
+    with pytest.raises(R.ResourceError, match="not a Snakemake benchmark"):
+        R.read_benchmark(tmp_path / "c/old_rule.tsv")
+
+
+def test_profile_groups_and_rules_exist(table):
+    prof = yaml.safe_load(PROFILE.read_text())
+    assert prof["executor"] == "slurm" and prof["slurm-status-command"] == "squeue"
+    assert set(prof["groups"]) <= set(table)
+    assert set(prof.get("group-components", {})) <= set(prof["groups"].values())
+
+
+@pytest.mark.parametrize("device,gpu", [("cuda", 1), ("cpu", 0)])
+def test_training_asks_for_a_gpu_only_on_cuda(device, gpu):
+    t = rule_table(REPO, config_overrides={"budget": "smoke", "dynamics": {"device": device}})
+    assert t["dynamics_train"]["resources"]["gpu"] == gpu
+    assert all(not v["resources"].get("gpu") for r, v in t.items() if r != "dynamics_train")
+
+
+class _Res(dict):
+    __getattr__ = dict.__getitem__
+
+
+@pytest.mark.parametrize("gpu", [1, 0])
+def test_plugin_turns_gpu_into_a_gpu_request(gpu):
+    from snakemake_executor_plugin_slurm.submit_string import get_submit_command
+    from snakemake_executor_plugin_slurm.utils import set_gres_string
+
+    job = SimpleNamespace(resources=_Res(gpu=gpu, mem_mb=1100, runtime=15, cpus_per_task=1), threads=1,
+                          name="dynamics_train", is_group=lambda: False)
+    params = dict(run_uuid="u", slurm_logfile="l", comment_str="c", account="", partition="", workdir="w")
+    call = get_submit_command(job, params) + set_gres_string(job)
+    assert ("--gpus=1" in call) == bool(gpu)  # SLURM's short form of --gres=gpu:1
+    assert "--mem 1100" in call and "-t 15" in call and "--cpus-per-task=1" in call
+
+
+def test_cuda_without_gpu_falls_back_to_cpu_with_one_line(monkeypatch):
+    lines = []
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
+    assert D.resolve("cuda", lines.append) == "cpu"
+    assert len(lines) == 1 and "running on cpu" in lines[0]
+    assert D.resolve("cpu", lines.append) == "cpu" and len(lines) == 1
+    with pytest.raises(ValueError, match="dynamics.device"):
+        D.resolve("tpu")
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
+    assert D.resolve("cuda", lines.append) == "cuda" and len(lines) == 1
