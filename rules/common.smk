@@ -145,3 +145,26 @@ def validated(**where):
     recordings lists these too, so it runs only on recordings that passed validation."""
     shards = sorted(select(**where).shard.unique())
     return expand("results/raw/shards/{shard}.json", shard=shards)
+
+
+# --- robustness variants (rules/robustness.smk) ---------------------------------------------------
+
+
+def rob_run(wc):
+    """The run a variant evaluates: its own search, or the benchmark's run for a smaller budget."""
+    if wc.variant in SHORTER:
+        return f"{POL}/runs/{wc.arch}_seed{wc.seed}.json"
+    return f"{ROB}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
+
+
+def rob_targets(name):
+    """A variant's target set: the uniform ones, or the benchmark's."""
+    return lambda wc: (
+        UNIFORM_TARGETS[name]
+        if wc.variant == "uniform"
+        else f"{POL}/targets_{name}.parquet"
+    )
+
+
+def rob_evals(variant):
+    return [f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]

@@ -25,26 +25,6 @@ wildcard_constraints:
     longer="|".join(LONGER) or "-",
 
 
-def rob_run(wc):
-    """The run a variant evaluates: its own search, or the benchmark's run for a smaller budget."""
-    if wc.variant in SHORTER:
-        return f"{POL}/runs/{wc.arch}_seed{wc.seed}.json"
-    return f"{ROB}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
-
-
-def rob_targets(name):
-    """A variant's target set: the uniform ones, or the benchmark's."""
-    return lambda wc: (
-        UNIFORM_TARGETS[name]
-        if wc.variant == "uniform"
-        else f"{POL}/targets_{name}.parquet"
-    )
-
-
-def rob_evals(variant):
-    return [f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
-
-
 rule robustness_targets:
     """Uniform workspace targets (training per generation, selection, evaluation; a seed each) and the
     training targets of the generations the continued runs add (up to the largest budget).
