@@ -22,6 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
+try:
+    from termios import error as _TermiosError  # pyserial's ioctl on a vanished port
+except ImportError:  # not a POSIX lab PC
+    _TermiosError = OSError
+
 from . import commands as C
 from . import controltable as CT
 from .manifest import ManifestError, load
@@ -29,6 +34,9 @@ from .manifest import ManifestError, load
 
 class DeployError(RuntimeError):
     """The trial stopped or was refused: one line naming the cause."""
+
+
+PORT_ERRORS = (OSError, _TermiosError)
 
 
 def _sdk():
@@ -71,6 +79,11 @@ class Bus:
             self.reader.addParam(i)
         self.bytes_tx = 0
 
+    def drain(self) -> None:
+        """Drop whatever is left in the receive buffer (a late or unread reply) before asking again."""
+        self.port.is_using = False
+        self.port.ser.reset_input_buffer()
+
     def _check(self, what: str, dxl_id, result: int, error: int = 0) -> None:
         if result != self.dxl.COMM_SUCCESS:
             r = self.ph.getTxRxResult(result)
@@ -89,7 +102,7 @@ class Bus:
             value, result, error = fn(self.port, dxl_id, a)
             if result == self.dxl.COMM_SUCCESS:
                 break
-            self.port.clearPort()
+            self.drain()
         self._check(f"read of address {a}", dxl_id, result, error)
         return value
 
@@ -100,7 +113,7 @@ class Bus:
             result, error = fn(self.port, dxl_id, a, CT.unsigned(value, n))
             if result == self.dxl.COMM_SUCCESS:
                 break
-            self.port.clearPort()
+            self.drain()
         self._check(f"write of address {a}", dxl_id, result, error)
 
     def ping(self, dxl_id: int) -> int:
@@ -108,7 +121,7 @@ class Bus:
             model, result, error = self.ph.ping(self.port, dxl_id)
             if result == self.dxl.COMM_SUCCESS:
                 break
-            self.port.clearPort()
+            self.drain()
         self._check("ping", dxl_id, result, error)
         return model
 
@@ -125,31 +138,47 @@ class Bus:
             result = self.reader.txRxPacket()
             if result == self.dxl.COMM_SUCCESS:
                 break
-            self.port.clearPort()
+            self.drain()
             if attempt == self.retries:
-                missing = next((i for i in self.ids if not self.reader.isAvailable(i, *CT.PRESENT_POSITION)), "?")
-                self._check("present-state sync read", missing, result)
+                self._check("present-state sync read", self._silent_servo(), result)
         pos = [CT.signed(self.reader.getData(i, *CT.PRESENT_POSITION), 4) for i in self.ids]
         cur = [CT.signed(self.reader.getData(i, *CT.PRESENT_CURRENT), 2) * CT.CURRENT_UNIT_MA for i in self.ids]
         return np.array(pos, float), np.array(cur, float)
 
+    def _silent_servo(self):
+        """Which servo fails a sync read: ask each on its own, once."""
+        for i in self.ids:
+            self.drain()
+            _, result, _ = self.ph.read4ByteTxRx(self.port, i, CT.PRESENT_POSITION[0])
+            if result != self.dxl.COMM_SUCCESS:
+                return i
+        return "unknown"
+
     def torque_off(self) -> list[str]:
-        """Clear the watchdog and turn torque off on every servo, read back; what failed, one line each."""
+        """Clear the watchdog and turn torque off on every servo, read back; what failed, one line each.
+        Each step is tried on its own: a servo that does not answer may still hear the write."""
         failed = []
         for i in self.ids:
             try:
-                self.write(i, CT.BUS_WATCHDOG, 0)
-                self.write(i, CT.TORQUE_ENABLE, 0)
+                self.drain()
+            except PORT_ERRORS as e:
+                return [f"servo {i}: port gone ({e})"]
+            for step in (lambda: self.write(i, CT.BUS_WATCHDOG, 0), lambda: self.write(i, CT.TORQUE_ENABLE, 0)):
+                try:
+                    step()
+                except (DeployError, *PORT_ERRORS):
+                    pass
+            try:
                 if self.read(i, CT.TORQUE_ENABLE):
                     failed.append(f"servo {i}: torque still on")
-            except (DeployError, OSError) as e:
+            except (DeployError, *PORT_ERRORS) as e:
                 failed.append(f"servo {i}: {e}")
         return failed
 
     def close(self) -> None:
         try:
             self.port.closePort()
-        except OSError:
+        except PORT_ERRORS:
             pass
 
 
@@ -264,7 +293,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
         cause = str(e)
     except KeyboardInterrupt:
         cause = "interrupted (SIGINT)"
-    except OSError as e:
+    except PORT_ERRORS as e:
         cause = f"port closed or lost: {e}"
     finally:
         failed = bus.torque_off()

@@ -33,7 +33,8 @@ def commands(man: dict, target) -> dict:
     lo, hi = (np.asarray(man["target_box"][k]) for k in ("lo", "hi"))
     if np.any(g[0] < lo) or np.any(g[0] > hi):
         raise RefusedTarget(f"target {np.round(p[0], 3).tolist()} outside the workspace: (d, e, r) = "
-                            f"{np.round(g[0], 3).tolist()} m, allowed {np.round(lo, 3).tolist()} .. {np.round(hi, 3).tolist()}")
+                            f"{np.round(g[0], 3).tolist()} m, allowed {np.round(lo, 3).tolist()} .. "
+                            f"{np.round(hi, 3).tolist()}")
     u = networks.outputs(pol["arch"], np.asarray(pol["theta"], float),
                          (g - np.asarray(pol["norm"]["mu"])) / np.asarray(pol["norm"]["sd"]))
     act = decode(u, act_cfg["ranges"])

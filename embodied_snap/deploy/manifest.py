@@ -86,23 +86,29 @@ def feature_box(ws: dict, pad_m: float) -> dict:
 
 def placements(ws: dict, distances_m, bearing_range_deg: float, n: int) -> list[dict]:
     """n target placements at distances spread over distances_m and bearings over bearing_range_deg
-    centred on the canonical strike bearing: for each, the recorded strike point whose distance is
-    nearest, scaled to the distance and turned about the hanging axis to the bearing, its face
-    normal against the recorded direction of travel (as the operator places the block)."""
+    centred on the canonical strike bearing. A placement's distance is horizontal, from the hanging
+    axis (the radius r of Eq. 5, what the lab measures on the table). For each: the recorded strike
+    point whose r is nearest, its horizontal radius set to the distance (elevation kept), turned
+    about the hanging axis to the bearing, its face normal against the recorded direction of travel
+    (as the operator places the block)."""
     ax = np.asarray(ws["hanging_axis"], float)
+    ax = ax / np.linalg.norm(ax)
     P, D = np.asarray(ws["strike_points_m"], float), np.asarray(ws["strike_dirs"], float)
     centre = ws["phi0_deg"] + ws["delta_str_deg"]
     dist = np.linspace(*distances_m, n)
     bear = centre + np.linspace(-bearing_range_deg / 2, bearing_range_deg / 2, n)
+    r = geometry.features(P, ax)[:, 2]
     out = []
-    dP = np.linalg.norm(P, axis=1)
     for i in range(n):
-        k = int(np.argmin(np.abs(dP - dist[i])))
-        turn = bear[i] - float(BR.bearing_deg(P[k], ax))
-        p = BR.rotate(P[k] * dist[i] / dP[k], turn, ax)
+        k = int(np.argmin(np.abs(r - dist[i])))
+        along = (P[k] @ ax) * ax
+        p = along + (P[k] - along) * dist[i] / r[k]
+        turn = bear[i] - float(BR.bearing_deg(p, ax))
+        p = BR.rotate(p, turn, ax)
         nrm = BR.rotate(-D[k], turn, ax)
-        out.append(dict(placement=i + 1, distance_m=round(float(dist[i]), 4), bearing_deg=round(float(bear[i]) % 360, 3),
-                        target_m=np.round(p, 5).tolist(), normal=np.round(nrm / np.linalg.norm(nrm), 5).tolist()))
+        out.append(dict(placement=i + 1, distance_m=round(float(dist[i]), 4),
+                        bearing_deg=round(float(bear[i]) % 360, 3), target_m=np.round(p, 5).tolist(),
+                        normal=np.round(nrm / np.linalg.norm(nrm), 5).tolist()))
     return out
 
 
@@ -124,8 +130,9 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
         actions=dict(ranges=ranges, timing_s=list(ranges["tau"]), workspace_fraction=pol["workspace_fraction"]),
         workspace={k: workspace[k] for k in ws_keys},
         target_box=feature_box(workspace, cfg["target_pad_m"]),
-        primitive=dict(phi0_deg=prim["phi0_deg"], s2_ramp_s=prim["s2_ramp_s"], cable_bearings_deg=list(CABLE_BEARINGS_DEG),
-                       antagonist_factor=ANTAGONIST_FACTOR, end_effector_m=rig["end_effector_m"], schedule=dict(sch)),
+        primitive=dict(phi0_deg=prim["phi0_deg"], s2_ramp_s=prim["s2_ramp_s"],
+                       cable_bearings_deg=list(CABLE_BEARINGS_DEG), antagonist_factor=ANTAGONIST_FACTOR,
+                       end_effector_m=rig["end_effector_m"], schedule=dict(sch)),
         servos=dict(ids=SERVO_IDS, model_number=CT.XM430_W350, operating_mode=CT.EXTENDED_POSITION_MODE,
                     goal_map="servo 3(s-1)+k pulls tendon k (azimuth 120(k-1) deg) of section s; goals in ticks "
                              "from the straight hanging arm (Homing Offset sets rest = 0)",

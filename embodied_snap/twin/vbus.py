@@ -129,6 +129,7 @@ class VirtualBus:
         self.goal_log: list[tuple[float, int, int, bool]] = []  # (trial time s, id, goal, applied)
         self.t0: float | None = None  # wall time of the first goal written with torque on
         self.last_rx = time.monotonic()
+        self.last_rx_t = 0.0  # trial clock of the last instruction packet
         self.tx_bytes = self.rx_bytes = 0
         self.closed = False
         self.stopped_at: dict[int, float] = {}  # id -> trial time its watchdog stopped it
@@ -185,6 +186,7 @@ class VirtualBus:
                     with self._lock:
                         self._tick()
                         self.last_rx = time.monotonic()
+                        self.last_rx_t = self.now()
                         self._handle(*p)
             with self._lock:
                 self._tick()
@@ -192,6 +194,18 @@ class VirtualBus:
     def _tick(self) -> None:
         """Advance the shafts to now; the watchdog; the faults that start at a time."""
         t = self.now()
+        quiet_from = self.last_rx - (self.t0 if self.t0 is not None else self.last_rx)
+        for s in self.servos:
+            # the watchdog fires exactly one period after the last instruction packet: the shafts
+            # move up to that instant and not after, however late this thread looks
+            wd = s.get(CT.BUS_WATCHDOG)
+            deadline = quiet_from + wd * CT.WATCHDOG_UNIT_MS / 1000
+            if 0 < wd < 0xFF and s.torque and self.t0 is not None and t > deadline:
+                self.stepper.advance(deadline)
+                s.put(CT.BUS_WATCHDOG, 0xFF)
+                s.watchdog_fired = True
+                self.stepper.stop(s.i)
+                self.stopped_at[s.i + 1] = deadline
         if self.t0 is not None:
             self.stepper.advance(t)
         f = self.faults
@@ -204,14 +218,6 @@ class VirtualBus:
         if "close" in f and self.t0 is not None and t >= f["close"]["at_s"] and not self.closed:
             self.closed = True
             os.close(self.master)  # the adapter is gone: the client's next read or write fails
-        quiet = time.monotonic() - self.last_rx
-        for s in self.servos:
-            wd = s.get(CT.BUS_WATCHDOG)
-            if 0 < wd < 0xFF and s.torque and quiet > wd * CT.WATCHDOG_UNIT_MS / 1000:
-                s.put(CT.BUS_WATCHDOG, 0xFF)
-                s.watchdog_fired = True
-                self.stepper.stop(s.i)
-                self.stopped_at[s.i + 1] = t
 
     # --- instructions ----------------------------------------------------------------------------
     def _silent(self, dxl_id: int) -> bool:
