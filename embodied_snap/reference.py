@@ -52,6 +52,11 @@ def fmt(v) -> str:
     return f"{v:.4g}" if isinstance(v, float) else str(v)
 
 
+def paper_column(section: str, path: str | Path = REFERENCE) -> dict:
+    """claim id -> the paper's value, of one section: for tables that set ours beside the paper's."""
+    return {cid: r["paper"] for cid, r in paper_values(path)[section].items()}
+
+
 def claim_rows(section: str, ours: dict, path: str | Path = REFERENCE) -> list[dict]:
     """Rows of a stage's claims.csv: every claim of `section` in the reference file, the paper's value
     beside ours (claim id -> value)."""

@@ -9,7 +9,6 @@ import pandas as pd
 from embodied_snap.characterize import deployment as D
 from embodied_snap.lineage.records import tracked
 from embodied_snap.rawformat import write_json
-from embodied_snap.reference import paper_values
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -23,7 +22,7 @@ with tracked(snakemake):
     s = D.summarize(trials, aborted["planned"], len(man["placements"]), P.bend_deg, P.fast_mps,
                     len(aborted["aborted"]))
     write_json(s, O.summary)
-    t2 = D.table2(s, P.bend_deg, P.fast_mps, paper_values(I.reference)["deployment"])
+    t2 = D.table2(s, P.bend_deg, P.fast_mps, I.reference)
     print(t2.to_string(), file=sys.stderr)
     t2.to_csv(O.csv, index=False, lineterminator="\n")
     open(O.md, "w").write(D.markdown(t2))

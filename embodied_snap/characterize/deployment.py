@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..deploy import commands as C
-from ..reference import claim_rows, fmt
+from ..reference import claim_rows, fmt, paper_column
 from . import load, trials
 from . import mocap as M
 
@@ -60,13 +60,14 @@ def summarize(df: pd.DataFrame, n_planned: int, n_placements: int, bend_deg: flo
     )
 
 
-def table2(s: dict, bend_deg: float, fast_mps: float, paper: dict) -> pd.DataFrame:
-    """Table II rows: evidence, criterion, our result, the paper's."""
+def table2(s: dict, bend_deg: float, fast_mps: float, path=None) -> pd.DataFrame:
+    """Table II rows: evidence, criterion, our result, the paper's (reference/paper_values.yaml)."""
     n, k = s["n_trials"], s["n_placements"]
     iqr = s["peak_speed_iqr_mps"]
+    paper = paper_column("deployment", *([path] if path else []))
 
     def p(key):
-        return fmt(paper[key]["paper"])
+        return fmt(paper[key])
 
     rows = [
         ("Preload reached", f"S2 bend increase >= {bend_deg:g} deg", f"{s['preload_reached']}/{n}",
@@ -75,7 +76,7 @@ def table2(s: dict, bend_deg: float, fast_mps: float, paper: dict) -> pd.DataFra
          f"{p('fast_snap')}/{p('n_trials')}"),
         ("Snap-speed distribution", "Median [IQR]",
          f"{s['peak_speed_median_mps']:.2f} m/s [{iqr[0]:.2f}-{iqr[1]:.2f}]",
-         f"{p('peak_speed_median_mps')} m/s [{'-'.join(fmt(x) for x in paper['peak_speed_iqr_mps']['paper'])}]"),
+         f"{p('peak_speed_median_mps')} m/s [{'-'.join(fmt(x) for x in paper['peak_speed_iqr_mps'])}]"),
         ("Object retrieved", "Detached and carried", f"{s['retrieved']}/{n}", f"{p('retrieved')}/{p('n_trials')}"),
         ("Spatial replication", "Placements with >= 1 retrieval", f"{s['placements_retrieved']}/{k}",
          f"{p('placements_retrieved')}/{p('n_placements')}"),

@@ -163,9 +163,9 @@ class Bus:
                 self.drain()
             except PORT_ERRORS as e:
                 return [f"servo {i}: port gone ({e})"]
-            for step in (lambda: self.write(i, CT.BUS_WATCHDOG, 0), lambda: self.write(i, CT.TORQUE_ENABLE, 0)):
+            for reg in (CT.BUS_WATCHDOG, CT.TORQUE_ENABLE):
                 try:
-                    step()
+                    self.write(i, reg, 0)
                 except (DeployError, *PORT_ERRORS):
                     pass
             try:
