@@ -281,3 +281,19 @@ def test_separation_sees_a_changed_input_or_another_manifest(man_path, tmp_path)
     run.write_text(run.read_text() + " ")
     v, _ = deployment_violations(root, "raw_data")
     assert len(v) == 2 and "changed after the manifest was exported" in v[0] and "ran manifest 000000000000" in v[1]
+
+
+def test_table2_counts_and_paper_column():
+    import pandas as pd
+
+    from embodied_snap.characterize import deployment as D
+
+    df = pd.DataFrame(dict(placement=[1, 1, 2, 3], s2_bend_increase_deg=[120.0, 109.0, 130.0, 111.0],
+                           v_peak_mps=[1.2, 0.9, 1.5, 1.0], retrieved=[True, False, False, True],
+                           attached=[True, False, True, True], open_loop=[True] * 4))
+    s = D.summarize(df, 5, 3, 110.0, 1.0, aborted=1)
+    assert (s["preload_reached"], s["fast_snap"], s["retrieved"], s["placements_retrieved"]) == (3, 3, 2, 2)
+    assert s["peak_speed_median_mps"] == pytest.approx(1.1) and s["online_correction"] == "none"
+    t = D.table2(s, 110.0, 1.0)
+    assert t.result.tolist()[0] == "3/5" and t.paper.tolist()[0] == "18/18" and t.paper.tolist()[-1] == "none"
+    assert D.summarize(df.assign(open_loop=[True, False, True, True]), 5, 3, 110.0, 1.0, 0)["online_correction"] != "none"

@@ -9,11 +9,12 @@ from pathlib import Path
 
 from embodied_snap import rawformat as RF
 from embodied_snap.lineage.records import tracked
+from embodied_snap.rawformat import RecordingError
 from embodied_snap.twin.deployment import run_trial
 from embodied_snap.validate import Limits, validate_group
 
 sys.stderr = open(snakemake.log[0], "w")
-with tracked(snakemake) as written:
+with tracked(snakemake):
     P = snakemake.params
     raw = Path(snakemake.output.index).parent
     n_pl, per = P.placements, P.trials_per_placement
@@ -28,9 +29,12 @@ with tracked(snakemake) as written:
         if "cause" in r:
             aborted.append(r)
             continue
-        validate_group(raw, r["group_id"], r, lim)  # a recording that fails the gate stops the job here
+        try:
+            validate_group(raw, r["group_id"], r, lim)  # the gate of docs/data.md, as for every recording
+        except RecordingError as e:  # kept out of the index with its reason, like an aborted trial
+            aborted.append(dict(group_id=r["group_id"], cause=f"rejected by the gate: {e}"))
+            continue
         rows.append(r)
-        written += [str(p) for p in RF.group_paths(raw, r["group_id"]).values()]
         print(f"{r['group_id']}: recorded", file=sys.stderr)
     for a in aborted:
         print(f"{a['group_id']}: {a['cause']}", file=sys.stderr)
