@@ -296,4 +296,5 @@ def test_table2_counts_and_paper_column():
     assert s["peak_speed_median_mps"] == pytest.approx(1.1) and s["online_correction"] == "none"
     t = D.table2(s, 110.0, 1.0)
     assert t.result.tolist()[0] == "3/5" and t.paper.tolist()[0] == "18/18" and t.paper.tolist()[-1] == "none"
-    assert D.summarize(df.assign(open_loop=[True, False, True, True]), 5, 3, 110.0, 1.0, 0)["online_correction"] != "none"
+    mixed = df.assign(open_loop=[True, False, True, True])
+    assert D.summarize(mixed, 5, 3, 110.0, 1.0, 0)["online_correction"] != "none"
