@@ -17,7 +17,9 @@ with tracked(snakemake):
     raw = I.groups.rsplit("/groups", 1)[0]
     index = pd.read_csv(I.index)
     aborted = json.load(open(I.aborted))
-    trials = pd.DataFrame([D.trial(raw, g, man) for g in index.group_id])
+    trials = pd.DataFrame([D.trial(raw, g, man) for g in index.group_id],
+                          columns=None if len(index) else ["group_id", "placement", "v_peak_mps", "retrieved",
+                                                           "attached", "open_loop", "s2_bend_increase_deg"])
     trials.to_csv(O.trials, index=False, lineterminator="\n")
     s = D.summarize(trials, aborted["planned"], len(man["placements"]), P.bend_deg, P.fast_mps,
                     len(aborted["aborted"]))

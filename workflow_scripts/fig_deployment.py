@@ -18,6 +18,9 @@ sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     I, P = snakemake.input, snakemake.params
     trials = pd.read_csv(I.trials)
+    if trials.empty:  # every trial aborted or was rejected: say so in the figure, do not invent one
+        F.empty(snakemake.output.pdf, snakemake.output.png)
+        sys.exit(0)
     ok = trials[trials.retrieved] if trials.retrieved.any() else trials[trials.attached]
     pick = (ok if len(ok) else trials.sort_values("v_peak_mps", ascending=False)).iloc[0]
     raw = I.groups.rsplit("/groups", 1)[0]

@@ -46,7 +46,10 @@ def trial(raw, gid: str, man: dict) -> dict:
 
 def summarize(df: pd.DataFrame, n_planned: int, n_placements: int, bend_deg: float, fast_mps: float,
               aborted: int) -> dict:
-    v = df.v_peak_mps.to_numpy()
+    if df.empty:  # every trial aborted: counts are zero, the speed statistics undefined
+        df = pd.DataFrame(columns=["placement", "s2_bend_increase_deg", "v_peak_mps", "retrieved", "attached",
+                                   "open_loop"]).astype({"retrieved": bool, "attached": bool, "open_loop": bool})
+    v = df.v_peak_mps.to_numpy(float)
     q1, med, q3 = np.percentile(v, [25, 50, 75]) if len(v) else (np.nan,) * 3
     return dict(
         n_trials=n_planned, n_recorded=len(df), n_aborted=aborted, n_placements=n_placements,

@@ -37,6 +37,7 @@ class DeployError(RuntimeError):
 
 
 PORT_ERRORS = (OSError, _TermiosError)
+REPLY_MS = 12.0  # a reply later than this (plus its bytes' time on the wire) is lost
 
 
 def _sdk():
@@ -55,6 +56,13 @@ def _port_class(dxl):
             ok = super().setupPort(cflag_baud)
             self.ser.timeout = 0.0005
             return ok
+
+        def setPacketTimeout(self, packet_length):
+            # The SDK allows 2 x 16 ms of USB latency timer per reply; with the adapter's latency
+            # timer at 1 ms (docs/deployment.md) a reply is late after REPLY_MS, so one lost reply
+            # and its retry fit in about two 100 Hz cycles.
+            self.packet_start_time = self.getCurrentTime()
+            self.packet_timeout = self.tx_time_per_byte * packet_length + REPLY_MS
 
     return Port
 
@@ -158,6 +166,7 @@ class Bus:
         """Clear the watchdog and turn torque off on every servo, read back; what failed, one line each.
         Each step is tried on its own: a servo that does not answer may still hear the write."""
         failed = []
+        time.sleep(2 * REPLY_MS / 1000)  # let a reply still in flight (an interrupted read) land, then drop it
         for i in self.ids:
             try:
                 self.drain()

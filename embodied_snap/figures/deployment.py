@@ -161,3 +161,14 @@ def predicted_frames(sim, meta: dict, times: dict, hanging: np.ndarray, ee_m: fl
         frames.append(dict(points=np.vstack([B[None], lab_frame(np.stack(p))]), block=None,
                            colour=[0.84, 0.37, 0.0, 1.0]))
     return frames
+
+
+def empty(pdf: str, png: str) -> None:
+    """Fig. 7 when no trial completed (results/deployment/summary.json says why)."""
+    style.setup()
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(style.TEXT_WIDTH_IN, 1.0))
+    ax.axis("off")
+    ax.text(0.5, 0.5, "no complete deployment trial (raw_data/deployment/aborted.json)", ha="center")
+    style.save(fig, pdf, png)
