@@ -10,18 +10,25 @@ DBUDGET = BUDGET["deployment"]
 SHARED_RUNS = [
     f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
 ]
+# Everything the manifest hashes: the separation proof re-hashes them (nothing changed after export).
+MANIFEST_INPUTS = dict(
+    runs=SHARED_RUNS,
+    workspace=f"{POL}/workspace.json",
+    servo="results/characterize/servo.json",
+    bank=f"{DYN}/hold_bank.npz",
+    snap="results/characterize/snap.json",
+    models=DMODELS,
+)
+MANIFEST_FILES = [
+    f for v in MANIFEST_INPUTS.values() for f in (v if isinstance(v, list) else [v])
+]
 
 
 rule deploy_manifest:
     """Everything `esnap deploy` reads: the selected shared policy, ranges, workspace, envelope,
     placements, calibration, code version and the sha256 of every input."""
     input:
-        runs=SHARED_RUNS,
-        workspace=f"{POL}/workspace.json",
-        servo="results/characterize/servo.json",
-        bank=f"{DYN}/hold_bank.npz",
-        snap="results/characterize/snap.json",
-        models=DMODELS,
+        **MANIFEST_INPUTS,
         schema="schemas/deployment_manifest.schema.json",
         code=imports("deploy_manifest"),
     output:

@@ -28,6 +28,7 @@ rule check_separation:
         deployment_index=f"{DEPLOY_RAW}/index.csv",
         deployment_groups=f"{DEPLOY_RAW}/groups",
         deployment_manifest=f"{DEPLOY}/manifest.json",
+        manifest_inputs=MANIFEST_FILES,
         code=imports("check_separation"),
     output:
         "results/lineage/separation.json",

@@ -37,7 +37,7 @@ class DeployError(RuntimeError):
 
 
 PORT_ERRORS = (OSError, _TermiosError)
-REPLY_MS = 12.0  # a reply later than this (plus its bytes' time on the wire) is lost
+REPLY_MS = 20.0  # a reply later than this (plus its bytes' time on the wire) is lost
 
 
 def _sdk():
@@ -60,7 +60,7 @@ def _port_class(dxl):
         def setPacketTimeout(self, packet_length):
             # The SDK allows 2 x 16 ms of USB latency timer per reply; with the adapter's latency
             # timer at 1 ms (docs/deployment.md) a reply is late after REPLY_MS, so one lost reply
-            # and its retry fit in about two 100 Hz cycles.
+            # and its retry cost about four 100 Hz cycles, not seven.
             self.packet_start_time = self.getCurrentTime()
             self.packet_timeout = self.tx_time_per_byte * packet_length + REPLY_MS
 
@@ -88,7 +88,9 @@ class Bus:
         self.bytes_tx = 0
 
     def drain(self) -> None:
-        """Drop whatever is left in the receive buffer (a late or unread reply) before asking again."""
+        """After a lost reply: wait out a reply still in flight, then drop whatever is in the receive
+        buffer, so that a late reply is never taken for the answer to the next question."""
+        time.sleep(REPLY_MS / 1000)
         self.port.is_using = False
         self.port.ser.reset_input_buffer()
 
@@ -166,7 +168,6 @@ class Bus:
         """Clear the watchdog and turn torque off on every servo, read back; what failed, one line each.
         Each step is tried on its own: a servo that does not answer may still hear the write."""
         failed = []
-        time.sleep(2 * REPLY_MS / 1000)  # let a reply still in flight (an interrupted read) land, then drop it
         for i in self.ids:
             try:
                 self.drain()
@@ -238,6 +239,9 @@ def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray
         t = time.monotonic() - t0
         i = ids[k % len(ids)]  # one servo's Hardware Error Status per cycle, round robin
         err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+        if err:  # latched on the servo: asked again after a drain, so a stray late reply cannot stop a trial
+            bus.drain()
+            err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
         if err:
             raise DeployError(f"hardware error on servo {i}: status {err:#04x} at t = {t:.2f} s")
         log[k, 0] = t
