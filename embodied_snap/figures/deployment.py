@@ -11,7 +11,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..quat import to_matrix
+from .. import bearing as BR
+from ..characterize import mocap as M
+from ..dynamics import hold
+from ..dynamics.model import AXIS, TIP
+from ..primitive import release_goals
+from ..quat import qrotate, to_matrix
+from ..rawformat import TIP_AXIS_LOCAL
 from . import style
 
 SCENE = """<mujoco><visual><global offwidth="640" offheight="640"/><headlight ambient=".5 .5 .5"/></visual>
@@ -94,8 +100,6 @@ def moments(mc, meta: dict) -> dict:
     """Times (s) of the five moments in a recorded trial: hanging (before the preload), preload
     (its end), snap (peak tip speed after the release began), reach (closest approach of the tip
     to the block), attachment (the observed seal, else 0.1 s after the reach)."""
-    from ..characterize import mocap as M
-
     lab, t = meta["labels"], mc.t.to_numpy()
     v = M.tip_speed(mc)
     _, t_snap = M.peak(v, t, lab["t_slack"])
@@ -108,10 +112,6 @@ def moments(mc, meta: dict) -> dict:
 
 
 def recorded_frames(mc, meta: dict, times: dict, ee_m: float) -> list[dict]:
-    from ..characterize import mocap as M
-    from ..quat import qrotate
-    from ..rawformat import TIP_AXIS_LOCAL
-
     t = mc.t.to_numpy()
     P = {b: M.track(mc, b) for b in ("base", "s1", "s2", "tip", "target")}
     qt = M.track(mc, "tip", ("qw", "qx", "qy", "qz"))
@@ -130,11 +130,6 @@ def predicted_frames(sim, meta: dict, times: dict, hanging: np.ndarray, ee_m: fl
     """The dynamics model's arm for the trial's commands: the hold model's pre-release state, then
     the ensemble-mean rollout (Eq. 4) through the S2 and S1 releases, turned to the commanded
     bearing and placed in the lab with the trial's base pose. `hanging`: the recorded rest frame."""
-    from .. import bearing as BR
-    from ..dynamics import hold
-    from ..dynamics.model import AXIS, TIP
-    from ..primitive import release_goals
-
     prog, lab = meta["program"], meta["labels"]
     act = sim.commands({k: np.array([float(prog[k])]) for k in ("rho1", "rho2", "rho3", "s3", "dphi", "tau")})
     rho = np.stack([act["rho1"], act["rho2"], act["rho3"]], -1)

@@ -15,11 +15,13 @@ group (or shard) and the rule broken.
 
 from __future__ import annotations
 
+import json
 from collections import deque
 from pathlib import Path
 
 import numpy as np
 
+from ..deploy.manifest import ManifestError, inputs_changed, load
 from ..io import read_parquet
 from . import policy as P
 from .dag import build_dag
@@ -304,10 +306,6 @@ MANIFEST = "results/deployment/manifest.json"
 def deployment_violations(root: Path, raw: str) -> tuple[list[str], int]:
     """Nothing upstream of the manifest changed after export: its checksum holds, every input it
     hashed still has that hash, and every deployment trial ran this manifest (meta.json)."""
-    import json
-
-    from ..deploy.manifest import ManifestError, inputs_changed, load
-
     rule = "docs/design.md 3: deployment runs the exported manifest; nothing upstream of it changes after export"
     if not (root / MANIFEST).exists():
         return [], 0
