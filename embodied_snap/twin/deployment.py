@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import rawformat as RF
 from ..deploy import client
+from ..io import parquet_rows
 from . import mocap as MC
 from . import truth as TR
 from .acquire import BLOCK_HALF
@@ -82,10 +83,8 @@ def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, sessio
     if attached:
         meta["labels"]["t_attach"] = round(float(ev["sealed"]), 4)
     RF.write_json(meta, p["meta"])
-    import pyarrow.parquet as pq
-
     return dict(group_id=gid, evidence_set="deployment", category="placement", session=session,
-                recorded_at=meta["recorded_at"], n_mocap=len(mc), n_servo=pq.ParquetFile(p["servo"]).metadata.num_rows)
+                recorded_at=meta["recorded_at"], n_mocap=len(mc), n_servo=parquet_rows(p["servo"]))
 
 
 def _serve(conn, man, placement, session, seed, dt, gid, faults, raw, k, speed_mps):
