@@ -38,6 +38,8 @@ class DeployError(RuntimeError):
 
 PORT_ERRORS = (OSError, _TermiosError)
 REPLY_MS = 20.0  # a reply later than this (plus its bytes' time on the wire) is lost
+DRAIN_MS = 5.0  # after a lost reply, wait this long for it to land before dropping it: a lost reply
+# and its retry then stay inside the gate's 50 ms servo-log gap (cycle 10 + 20 + 5 + the retry)
 
 
 def _sdk():
@@ -90,7 +92,7 @@ class Bus:
     def drain(self) -> None:
         """After a lost reply: wait out a reply still in flight, then drop whatever is in the receive
         buffer, so that a late reply is never taken for the answer to the next question."""
-        time.sleep(REPLY_MS / 1000)
+        time.sleep(DRAIN_MS / 1000)
         self.port.is_using = False
         self.port.ser.reset_input_buffer()
 
