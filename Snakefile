@@ -30,6 +30,7 @@ include: "rules/dynamics.smk"
 include: "rules/policy.smk"
 include: "rules/ablation.smk"
 include: "rules/robustness.smk"
+include: "rules/deploy.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
 
@@ -46,6 +47,10 @@ rule all:
         "results/dynamics/claims.csv",
         "results/policy/claims.csv",
         "results/ablation/claims.csv",
+        "results/deployment/claims.csv",
+        "results/tables/table2_deployment.csv",
+        "results/tables/table2_deployment.md",
+        "results/tables/table2_deployment.tex",
         TWIN_REPORTS,
 
 

@@ -7,10 +7,10 @@ import json
 import sys
 from pathlib import Path
 
-import yaml
-
 
 def _config(path: str, budget: str | None) -> dict:
+    import yaml  # not at the top: `esnap deploy` runs on the lab PC with numpy and dynamixel-sdk alone
+
     with open(path) as f:
         cfg = yaml.safe_load(f)
     if budget:
@@ -117,6 +117,8 @@ def _run_config(a) -> dict | None:
     KEY=VALUE with YAML values); None when neither is given (then: the last run's, from the records)."""
     if not a.config and not a.configfile:
         return None
+    import yaml
+
     cfg = _config(Path(a.root) / (a.configfile or "config.yaml"), None)
     for kv in a.config or []:
         key, sep, val = kv.partition("=")
@@ -180,6 +182,37 @@ def cmd_resources(a) -> int:
     return 0
 
 
+def _target(a, man_path) -> list[float]:
+    if a.target:
+        return [float(x) for x in a.target.split(",")]
+    if a.target_from_mocap:
+        with open(a.target_from_mocap) as f:  # the mocap system's export: {"target_m": [x, y, z]} in the base frame
+            return [float(x) for x in json.load(f)["target_m"]]
+    with open(man_path) as f:
+        return json.load(f)["placements"][a.placement - 1]["target_m"]
+
+
+def cmd_deploy(a) -> int:
+    """One open-loop trial of the manifest's policy (docs/deployment.md). Numpy + dynamixel-sdk only."""
+    from .deploy.client import DeployError, run
+
+    if not a.dry_run and not a.port:
+        print("error: --port is required (or --dry-run)", file=sys.stderr)
+        return 2
+    ask = None
+    if not a.yes and not a.dry_run and sys.stdin.isatty():
+        ask = lambda: input("execute this trial on the arm? [y/N] ").strip().lower() == "y"  # noqa: E731
+    try:
+        r = run(a.manifest, a.port, _target(a, a.manifest), baud=a.baud, out=a.out, group_id=a.group_id,
+                dry_run=a.dry_run, confirm=ask)
+    except DeployError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    if not a.dry_run:
+        print(f"trial complete: {len(r['log'])} cycles, torque off" + (f", written to {a.out}" if a.out else ""))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="esnap", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -231,6 +264,20 @@ def main(argv: list[str] | None = None) -> int:
     rs.add_argument("--root", default=".", help="the workflow (its rules' benchmarks and threads)")
     rs.add_argument("--check", action="store_true", help="only compare; exit 1 when the profile differs")
     rs.set_defaults(fn=cmd_resources)
+
+    d = sub.add_parser("deploy", help="run one open-loop trial of the deployment manifest on the servos")
+    d.add_argument("--manifest", default="results/deployment/manifest.json")
+    d.add_argument("--port", help="serial port of the servo bus, e.g. /dev/ttyUSB0")
+    d.add_argument("--baud", type=int, help="default: the manifest's (1000000)")
+    tg = d.add_mutually_exclusive_group(required=True)
+    tg.add_argument("--target", help="x,y,z of the target in the base frame (m)")
+    tg.add_argument("--target-from-mocap", help="JSON file {target_m: [x, y, z]} exported by the mocap system")
+    tg.add_argument("--placement", type=int, help="one of the manifest's placements (1-based)")
+    d.add_argument("--out", help="recording tree to write the trial into (groups/<id>/, aborted/)")
+    d.add_argument("--group-id", default="dep_0001")
+    d.add_argument("--dry-run", action="store_true", help="print the commands and goal schedule, open no port")
+    d.add_argument("--yes", action="store_true", help="do not ask before moving the arm")
+    d.set_defaults(fn=cmd_deploy)
 
     a = p.parse_args(argv)
     return a.fn(a)

@@ -17,8 +17,13 @@ rule check_separation:
         # the claims tables come after every model, policy and target set: all records exist
         claims=expand(
             "results/{stage}/claims.csv",
-            stage=("characterize", "dynamics", "policy", "ablation"),
+            stage=("characterize", "dynamics", "policy", "ablation", "deployment"),
         ),
+        # the deployment recordings and the manifest they ran: nothing upstream changed after export
+        deployment_index=f"{DEPLOY_RAW}/index.csv",
+        deployment_groups=f"{DEPLOY_RAW}/groups",
+        deployment_manifest=f"{DEPLOY}/manifest.json",
+        manifest_inputs=MANIFEST_FILES,
         code=imports("check_separation"),
     output:
         "results/lineage/separation.json",

@@ -8,6 +8,7 @@ FIGURES = [
     "fig4_gates",
     "fig5_benchmark",
     "fig6_ablation",
+    "fig7_deployment",
 ]
 
 

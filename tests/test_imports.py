@@ -8,7 +8,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 # The scripts of rules/acquire.smk, included only with raw_data.source: twin.
-TWIN_SCRIPTS = {"twin_acquire", "twin_index", "twin_truth", "twin_phenomena", "twin_validation"}
+TWIN_SCRIPTS = {"twin_acquire", "twin_index", "twin_truth", "twin_phenomena", "twin_validation", "twin_deployment"}
 
 
 def imported_modules(path: Path) -> set[str]:

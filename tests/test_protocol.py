@@ -84,7 +84,7 @@ def test_paper_values_only_feed_the_paper_column():
             if m and "reference/paper_values.yaml" in block:
                 readers.add(m.group(1))
     assert readers == {"table_characterize_claims", "table_dynamics_claims", "table_policy_claims",
-                       "table_ablation_claims", "table_robustness_claims", "twin_validation"}
+                       "table_ablation_claims", "table_robustness_claims", "twin_validation", "deploy_table"}
     code = [p for d in ("embodied_snap", "workflow_scripts") for p in (REPO / d).rglob("*.py")]
     reads = re.compile(r"\bpaper_values\s*\(|import [^\n]*\bpaper_values\b")  # a call or an import
     users = {p.relative_to(REPO).as_posix() for p in code if reads.search(p.read_text())}

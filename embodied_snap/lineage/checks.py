@@ -15,15 +15,17 @@ group (or shard) and the rule broken.
 
 from __future__ import annotations
 
+import json
 from collections import deque
 from pathlib import Path
 
 import numpy as np
 
+from ..deploy.manifest import ManifestError, inputs_changed, load
 from ..io import read_parquet
 from . import policy as P
 from .dag import build_dag
-from .groups import SPLIT_CSV, group_of, load_groups, twin_truth
+from .groups import SPLIT_CSV, deployment_dir, group_of, load_groups, twin_truth
 from .records import DEFAULT_RAW, RECORDS_DIR, last_config, load_records, raw_dir_of
 
 RULE = "docs/design.md 3"
@@ -39,6 +41,8 @@ def file_source(path: str, raw: str) -> str | None:
     """The policy key of a file source at `path`, or None."""
     if path == twin_truth(raw):
         return "twin_truth"
+    if path.startswith(deployment_dir(raw) + "/") or path == deployment_dir(raw):
+        return "deployment"
     return path if path in P.POLICY and P.POLICY[path].readers else None
 
 
@@ -296,6 +300,29 @@ def _target_violations(root: Path) -> tuple[list[str], int]:
     return out, len(sets)
 
 
+MANIFEST = "results/deployment/manifest.json"
+
+
+def deployment_violations(root: Path, raw: str) -> tuple[list[str], int]:
+    """Nothing upstream of the manifest changed after export: its checksum holds, every input it
+    hashed still has that hash, and every deployment trial ran this manifest (meta.json)."""
+    rule = "docs/design.md 3: deployment runs the exported manifest; nothing upstream of it changes after export"
+    if not (root / MANIFEST).exists():
+        return [], 0
+    try:
+        man = load(root / MANIFEST)
+    except ManifestError as e:
+        return [f"separation (deployment): {e}; {rule}"], 0
+    out = [f"separation (deployment): {MANIFEST}: {w}; {rule}" for w in inputs_changed(man, root)]
+    groups = sorted((root / deployment_dir(raw) / "groups").glob("*/meta.json"))
+    for m in groups:
+        sha = json.loads(m.read_text()).get("manifest_sha256")
+        if sha != man["checksum"]:
+            out.append(f"separation (deployment): {m.relative_to(root)}: ran manifest {str(sha)[:12]}, "
+                       f"not the exported {man['checksum'][:12]}; {rule}")
+    return out, len(groups)
+
+
 def _records_check(root: Path, raw: str, complete: bool) -> tuple[list[str], dict]:
     groups = load_groups(root, raw)
     out, counts = _record_violations(root, groups, raw, complete)
@@ -304,8 +331,9 @@ def _records_check(root: Path, raw: str, complete: bool) -> tuple[list[str], dic
     out += _split_violations(root, groups)
     w, nw = _window_violations(root, groups)
     t, nt = _target_violations(root)
-    counts.update(groups=len(groups), window_files=nw, target_sets=nt)
-    return out + w + t, counts
+    d, nd = deployment_violations(root, raw)
+    counts.update(groups=len(groups), window_files=nw, target_sets=nt, deployment_trials=nd)
+    return out + w + t + d, counts
 
 
 def check_records(root=".", raw: str = DEFAULT_RAW, complete: bool = True) -> list[str]:

@@ -20,6 +20,11 @@ def twin_truth(raw: str = DEFAULT_RAW) -> str:
     return f"{raw}/twin_truth.json"
 
 
+def deployment_dir(raw: str = DEFAULT_RAW) -> str:
+    """The deployment trials' own recording tree (written after the manifest was exported)."""
+    return f"{raw}/deployment"
+
+
 def group_of(path: str, raw: str = DEFAULT_RAW) -> tuple[str, str] | None:
     """(group_id, file name) if `path` (relative to the root) is a recording file of `raw`."""
     head = f"{raw}/groups/"

@@ -28,7 +28,8 @@ TARGETS = frozenset({"all", "robustness"})
 # Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
 SOURCE_RULES = frozenset({"twin_acquire", "validate_shard", "resample_shard"})
 # Rules that write a file source.
-FILE_WRITERS = frozenset({"twin_truth", "policy_targets", "ablation_targets", "robustness_targets"})
+FILE_WRITERS = frozenset({"twin_truth", "policy_targets", "ablation_targets", "robustness_targets",
+                          "twin_deployment"})
 
 # Reports of each stage: tables and figures, and the folder that gathers the figures.
 CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_validation", "figures")
@@ -44,10 +45,14 @@ ROBUSTNESS_RUNS = ("robustness_search_uniform", "robustness_search_longer", "rob
                    "robustness_evaluate")
 ROBUSTNESS_REPORTS = ("robustness_summary", "fig_robustness", "table_robustness_claims")
 ROBUSTNESS = (*ROBUSTNESS_RUNS, *ROBUSTNESS_REPORTS)
+# Deployment (paper VI): the manifest exported from the selected policy, the trials that run it,
+# and its reports. Everything that fed the policy reaches all of these through the manifest.
+DEPLOY_REPORTS = ("deploy_table", "fig_deployment", "figures")
+DEPLOY_RULES = ("deploy_manifest", "twin_deployment", *DEPLOY_REPORTS)
 # Everything that uses the GRU models (trained on train, selected on validation windows).
 MODEL_USERS = (
     "dynamics_validate", "dynamics_sealed_eval", "dynamics_gate", *POLICY_RUNS, *DYN_REPORTS,
-    *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS,
+    *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *DEPLOY_RULES,
 )
 
 
@@ -64,9 +69,9 @@ class Source:
 POLICY: dict[str, Source] = {
     "servo_calibration": Source(
         ("characterize_kinematics", "characterize_servo", "characterize_release", "characterize_heldbase",
-         *CHAR_REPORTS),
-        "servo_calibration may feed tendon kinematics, the servo rate fit and the rate ceilings, never "
-        "the dynamics model or policies"),
+         *CHAR_REPORTS, *DEPLOY_RULES),
+        "servo_calibration may feed tendon kinematics, the servo rate fit and the rate ceilings (the "
+        "manifest's calibration), never the dynamics model or policies"),
     "attachment": Source(
         ("characterize_attachment", "twin_phenomena", *CHAR_REPORTS),
         "attachment may feed the speed/angle attachment model, never the dynamics model or policies"),
@@ -80,9 +85,12 @@ POLICY: dict[str, Source] = {
     "held_base": Source(
         ("characterize_heldbase", *CHAR_REPORTS),
         "held_base may feed the trigger-detection comparison, never the dynamics model or policies"),
+    # Recorded after export (raw_data/deployment/, a tree of its own): a file source read only by
+    # Table II, Fig. 7 and the separation proof, which also shows the manifest's inputs unchanged.
     "deployment": Source(
-        (),
-        "deployment may feed Table II and Fig. 7, nothing upstream of the manifest", held_out=True),
+        DEPLOY_REPORTS,
+        "deployment may feed Table II and Fig. 7, nothing upstream of the manifest", held_out=True,
+        readers=("deploy_table", "fig_deployment", "check_separation")),
     # The dynamics corpus by split role (440 / 78 / 20).
     "train": Source(
         ("windows(role=train)", "dynamics_train", "characterize_snap", "dynamics_hold", "policy_workspace",
@@ -101,8 +109,8 @@ POLICY: dict[str, Source] = {
         ("twin_validation",), "only twin_validation reads the simulated rig's ground truth",
         held_out=True, readers=("twin_validation",)),
     "results/policy/targets_selection.parquet": Source(
-        (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS),
-        "the selection targets select policies and the fixed primitive, nothing else",
+        (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *DEPLOY_RULES),
+        "the selection targets select policies and the fixed primitive (and so the deployed policy), nothing else",
         readers=("policy_search", "policy_fixed", "robustness_search_longer", "check_separation")),
     "results/policy/targets_evaluation.parquet": Source(
         ("policy_evaluate", "policy_fixed", "policy_summary", *POLICY_REPORTS, "ablation_bend", "ablation_perturb",

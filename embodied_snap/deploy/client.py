@@ -1,0 +1,337 @@
+"""`esnap deploy`: one open-loop trial of the frozen shared policy on the nine servos (paper VI).
+
+The manifest is all it reads (checksum verified). From the target it computes the six commands
+(Eq. 5-8) and every goal of the trial before the port is opened; then, over Dynamixel Protocol 2.0
+(dynamixel-sdk: PortHandler, PacketHandler 2.0, GroupSyncWrite at Goal Position, GroupSyncRead of
+Present Current/Velocity/Position, explicit reads of Hardware Error Status), it checks every servo's
+model number, operating mode and EEPROM position limits against the manifest, sets the bus
+watchdog, enables torque and plays the schedule at the manifest's rate, reading every servo back
+each cycle. Nothing read back changes a goal (open loop: Table II's "online correction: none").
+Torque goes off in a `finally` on success, any error, a timeout, SIGINT or SIGTERM. Only a complete
+trial is written, in the rig recording format (docs/data.md); an aborted one leaves a one-line
+record under `aborted/`. Numpy, dynamixel-sdk and the standard library only.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+
+try:
+    from termios import error as _TermiosError  # pyserial's ioctl on a vanished port
+except ImportError:  # not a POSIX lab PC
+    _TermiosError = OSError
+
+from . import commands as C
+from . import controltable as CT
+from .manifest import ManifestError, load
+
+
+class DeployError(RuntimeError):
+    """The trial stopped or was refused: one line naming the cause."""
+
+
+PORT_ERRORS = (OSError, _TermiosError)
+REPLY_MS = 20.0  # a reply later than this (plus its bytes' time on the wire) is lost
+DRAIN_MS = 5.0  # after a lost reply, wait this long for it to land before dropping it: a lost reply
+# and its retry then stay inside the gate's 50 ms servo-log gap (cycle 10 + 20 + 5 + the retry)
+
+
+def _sdk():
+    import dynamixel_sdk as dxl
+
+    return dxl
+
+
+def _port_class(dxl):
+    class Port(dxl.PortHandler):
+        """dynamixel-sdk's port, but a read waits up to 0.5 ms for bytes instead of returning at once:
+        the SDK polls the port in a loop until a reply or its timeout, and a non-blocking read makes
+        that loop spin a whole core, starving everything else on the lab PC."""
+
+        def setupPort(self, cflag_baud):
+            ok = super().setupPort(cflag_baud)
+            self.ser.timeout = 0.0005
+            return ok
+
+        def setPacketTimeout(self, packet_length):
+            # The SDK allows 2 x 16 ms of USB latency timer per reply; with the adapter's latency
+            # timer at 1 ms (docs/deployment.md) a reply is late after REPLY_MS, so one lost reply
+            # and its retry cost about four 100 Hz cycles, not seven.
+            self.packet_start_time = self.getCurrentTime()
+            self.packet_timeout = self.tx_time_per_byte * packet_length + REPLY_MS
+
+    return Port
+
+
+class Bus:
+    """The servo chain behind one serial port, through dynamixel-sdk."""
+
+    def __init__(self, port: str, baud: int, ids, retries: int):
+        dxl = _sdk()
+        self.dxl, self.ids, self.retries = dxl, list(ids), retries
+        self.port = _port_class(dxl)(port)
+        self.ph = dxl.PacketHandler(2.0)
+        if not self.port.openPort():
+            raise DeployError(f"cannot open port {port}")
+        if not self.port.setBaudRate(baud):
+            raise DeployError(f"cannot set {baud} baud on {port}")
+        a, n = CT.GOAL_POSITION
+        self.writer = dxl.GroupSyncWrite(self.port, self.ph, a, n)
+        a, n = CT.PRESENT_BLOCK
+        self.reader = dxl.GroupSyncRead(self.port, self.ph, a, n)
+        for i in self.ids:
+            self.reader.addParam(i)
+        self.bytes_tx = 0
+
+    def drain(self) -> None:
+        """After a lost reply: wait out a reply still in flight, then drop whatever is in the receive
+        buffer, so that a late reply is never taken for the answer to the next question."""
+        time.sleep(DRAIN_MS / 1000)
+        self.port.is_using = False
+        self.port.ser.reset_input_buffer()
+
+    def _check(self, what: str, dxl_id, result: int, error: int = 0) -> None:
+        if result != self.dxl.COMM_SUCCESS:
+            r = self.ph.getTxRxResult(result)
+            cause = ("CRC error" if result == self.dxl.COMM_RX_CORRUPT else
+                     "timeout: no reply" if result in (self.dxl.COMM_RX_TIMEOUT, self.dxl.COMM_RX_FAIL) else r)
+            raise DeployError(f"{cause} from servo {dxl_id} ({what}: {r})")
+        if error & CT.ALERT_BIT:
+            raise DeployError(f"hardware error on servo {dxl_id} (alert bit, {what})")
+        if error:
+            raise DeployError(f"servo {dxl_id} refused {what}: {self.ph.getRxPacketError(error)}")
+
+    def read(self, dxl_id: int, reg) -> int:
+        a, n = reg
+        fn = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[n]
+        for _ in range(self.retries + 1):  # a lost or garbled reply is asked again, then it aborts
+            value, result, error = fn(self.port, dxl_id, a)
+            if result == self.dxl.COMM_SUCCESS:
+                break
+            self.drain()
+        self._check(f"read of address {a}", dxl_id, result, error)
+        return value
+
+    def write(self, dxl_id: int, reg, value: int) -> None:
+        a, n = reg
+        fn = {1: self.ph.write1ByteTxRx, 2: self.ph.write2ByteTxRx, 4: self.ph.write4ByteTxRx}[n]
+        for _ in range(self.retries + 1):
+            result, error = fn(self.port, dxl_id, a, CT.unsigned(value, n))
+            if result == self.dxl.COMM_SUCCESS:
+                break
+            self.drain()
+        self._check(f"write of address {a}", dxl_id, result, error)
+
+    def ping(self, dxl_id: int) -> int:
+        for _ in range(self.retries + 1):
+            model, result, error = self.ph.ping(self.port, dxl_id)
+            if result == self.dxl.COMM_SUCCESS:
+                break
+            self.drain()
+        self._check("ping", dxl_id, result, error)
+        return model
+
+    def sync_write(self, goals) -> None:
+        self.writer.clearParam()
+        for i, g in zip(self.ids, goals, strict=True):
+            self.writer.addParam(i, CT.unsigned(int(g), 4).to_bytes(4, "little"))
+        result = self.writer.txPacket()
+        self._check("goal sync write", "all", result)
+
+    def sync_read(self) -> tuple[np.ndarray, np.ndarray]:
+        """Present position (ticks) and current (mA) of every servo; retried on a lost reply."""
+        for attempt in range(self.retries + 1):
+            result = self.reader.txRxPacket()
+            if result == self.dxl.COMM_SUCCESS:
+                break
+            self.drain()
+            if attempt == self.retries:
+                self._check("present-state sync read", self._silent_servo(), result)
+        pos = [CT.signed(self.reader.getData(i, *CT.PRESENT_POSITION), 4) for i in self.ids]
+        cur = [CT.signed(self.reader.getData(i, *CT.PRESENT_CURRENT), 2) * CT.CURRENT_UNIT_MA for i in self.ids]
+        return np.array(pos, float), np.array(cur, float)
+
+    def _silent_servo(self):
+        """Which servo fails a sync read: ask each on its own, once."""
+        for i in self.ids:
+            self.drain()
+            _, result, _ = self.ph.read4ByteTxRx(self.port, i, CT.PRESENT_POSITION[0])
+            if result != self.dxl.COMM_SUCCESS:
+                return i
+        return "unknown"
+
+    def torque_off(self) -> list[str]:
+        """Clear the watchdog and turn torque off on every servo, read back; what failed, one line each.
+        Each step is tried on its own: a servo that does not answer may still hear the write."""
+        failed = []
+        for i in self.ids:
+            try:
+                self.drain()
+            except PORT_ERRORS as e:
+                return [f"servo {i}: port gone ({e})"]
+            for reg in (CT.BUS_WATCHDOG, CT.TORQUE_ENABLE):
+                try:
+                    self.write(i, reg, 0)
+                except (DeployError, *PORT_ERRORS):
+                    pass
+            try:
+                if self.read(i, CT.TORQUE_ENABLE):
+                    failed.append(f"servo {i}: torque still on")
+            except (DeployError, *PORT_ERRORS) as e:
+                failed.append(f"servo {i}: {e}")
+        return failed
+
+    def close(self) -> None:
+        try:
+            self.port.closePort()
+        except PORT_ERRORS:
+            pass
+
+
+def preflight(bus: Bus, man: dict) -> None:
+    """Refuse (one line) unless every servo is the manifest's model, in its operating mode, with
+    its EEPROM position limits and no latched hardware error."""
+    sv, env = man["servos"], man["envelope"]
+    for k, i in enumerate(sv["ids"]):
+        model = bus.ping(i)
+        if model != sv["model_number"]:
+            raise DeployError(f"servo {i}: model number {model}, the manifest says {sv['model_number']}")
+        mode = bus.read(i, CT.OPERATING_MODE)
+        if mode != sv["operating_mode"]:
+            raise DeployError(f"servo {i}: operating mode {mode}, the manifest says {sv['operating_mode']}")
+        lo = CT.signed(bus.read(i, CT.MIN_POSITION_LIMIT), 4)
+        hi = CT.signed(bus.read(i, CT.MAX_POSITION_LIMIT), 4)
+        if (lo, hi) != (env["eeprom_min"][k], env["eeprom_max"][k]):
+            raise DeployError(f"servo {i}: EEPROM position limits {lo} .. {hi}, the manifest says "
+                              f"{env['eeprom_min'][k]} .. {env['eeprom_max'][k]}")
+        err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+        if err:
+            raise DeployError(f"servo {i}: hardware error status {err:#04x} before the trial")
+
+
+def _sigterm(signum, frame):
+    raise DeployError("terminated (SIGTERM)")
+
+
+def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray:
+    """Play the schedule open loop; returns the servo log (T, 1 + 27): t, then goal, present,
+    current per servo. Every goal is in `goals` before this is called, and nothing here writes it."""
+    assert not goals.flags.writeable, "the schedule must be frozen before the first byte moves the arm"
+    ids = man["servos"]["ids"]
+    period = 1.0 / float(man["servos"]["hz"])
+    wd = int(round(man["servos"]["watchdog_ms"] / CT.WATCHDOG_UNIT_MS))
+    for i in ids:
+        bus.write(i, CT.BUS_WATCHDOG, wd)
+    for i in ids:
+        bus.write(i, CT.TORQUE_ENABLE, 1)
+    log = np.empty((len(goals), 1 + 27))
+    t0 = time.monotonic()
+    for k, g in enumerate(goals):
+        delay = t0 + k * period - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        bus.sync_write(g)
+        pos, cur = bus.sync_read()
+        t = time.monotonic() - t0
+        i = ids[k % len(ids)]  # one servo's Hardware Error Status per cycle, round robin
+        err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+        if err:  # latched on the servo: asked again after a drain, so a stray late reply cannot stop a trial
+            bus.drain()
+            err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+        if err:
+            raise DeployError(f"hardware error on servo {i}: status {err:#04x} at t = {t:.2f} s")
+        log[k, 0] = t
+        log[k, 1:].reshape(9, 3)[:] = np.stack([g, pos, cur], 1)
+        if on_cycle:
+            on_cycle(k, t)
+    return log
+
+
+def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
+    """The servo log and meta.json in the rig format (rawformat; needs pandas and pyarrow, else the
+    log is kept as servo.npz for conversion on another machine)."""
+    d = Path(out) / "groups" / meta["group_id"]
+    d.mkdir(parents=True, exist_ok=True)
+    try:
+        import pandas as pd
+
+        from .. import rawformat as RF
+    except ImportError:
+        np.savez(d / "servo.npz", log=log)
+        files = [d / "servo.npz"]
+    else:
+        df = pd.DataFrame(log, columns=RF.servo_columns())
+        for c in df.columns[1:]:
+            if not c.startswith("current"):
+                df[c] = df[c].round().astype("int64")
+        RF.write_parquet(df, d / "servo.parquet")
+        files = [d / "servo.parquet"]
+    with open(d / "meta.json", "w") as f:
+        json.dump(meta, f, indent=1, sort_keys=True)
+        f.write("\n")
+    return files + [d / "meta.json"]
+
+
+def run(manifest, port: str | None, target, *, baud: int | None = None, out=None, group_id: str = "dep_0001",
+        meta_extra: dict | None = None, dry_run: bool = False, confirm=None, say=print) -> dict:
+    """One trial. Returns {commands, phases, goals, log, cause, torque_off}; raises DeployError
+    (one line) when it refuses or aborts, after torque went off."""
+    try:
+        man = load(manifest)
+        trial = C.plan(man, target)
+    except (ManifestError, C.RefusedTarget) as e:
+        raise DeployError(f"refused: {e}") from None
+    cmd, goals = trial["commands"], trial["goals"]
+    say("commands: " + ", ".join(f"{k} {v:.3f}" for k, v in cmd.items()))
+    say(f"schedule: {len(goals)} goals at {man['servos']['hz']} Hz over {trial['t'][-1]:.2f} s; phases "
+        + ", ".join(f"{k} {v:.2f}" for k, v in trial["phases"].items()))
+    if dry_run:
+        for k in range(0, len(goals), max(1, int(man["servos"]["hz"]) // 10)):
+            say(f"{trial['t'][k]:6.2f} " + " ".join(f"{g:6d}" for g in goals[k]))
+        return dict(trial, log=None, cause=None)
+    if confirm is not None and not confirm():
+        raise DeployError("refused: not confirmed by the operator")
+    out_dir = Path(out) if out else None
+    bus = Bus(port, baud or man["servos"]["baud"], man["servos"]["ids"], man["servos"]["reply_retries"])
+    old = signal.signal(signal.SIGTERM, _sigterm)
+    cause, log = None, None
+    try:
+        preflight(bus, man)
+        log = execute(bus, man, goals)
+    except DeployError as e:
+        cause = str(e)
+    except KeyboardInterrupt:
+        cause = "interrupted (SIGINT)"
+    except PORT_ERRORS as e:
+        cause = f"port closed or lost: {e}"
+    finally:
+        failed = bus.torque_off()
+        bus.close()
+        signal.signal(signal.SIGTERM, old)
+    result = dict(trial, log=log, cause=cause, torque_off=not failed)
+    if cause is not None:
+        if out_dir is not None:
+            a = out_dir / "aborted"
+            a.mkdir(parents=True, exist_ok=True)
+            with open(a / f"{group_id}.json", "w") as f:
+                json.dump(dict(group_id=group_id, cause=cause, torque_off_failed=failed,
+                               manifest_sha256=man["checksum"]), f, indent=1)
+        more = f"; torque off failed: {failed[0]}" if failed else "; torque off on all servos"
+        raise DeployError(f"aborted: {cause}{more}")
+    if out_dir is not None:
+        meta = dict(format_version=1, group_id=group_id, evidence_set="deployment", category="placement",
+                    session="lab", recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",
+                    base=dict(pos=[0.0, 0.0, 0.0], quat=[1.0, 0.0, 0.0, 0.0]),
+                    axis=man["workspace"]["hanging_axis"], manifest_sha256=man["checksum"],
+                    program=dict(kind="primitive", **{k: round(v, 4) for k, v in cmd.items()},
+                                 target_m=[float(x) for x in np.ravel(target)]),
+                    labels={k: v for k, v in trial["phases"].items() if k != "t_end"})
+        meta.update(meta_extra or {})
+        write_trial(out_dir, meta, log)
+    return result

@@ -1,0 +1,147 @@
+"""Deployment trials on the simulated rig (paper VI): the block at a manifest placement, nine
+virtual XM430s on a pseudo-terminal (vbus.py) whose shafts drive the arm (stepper.py), and
+`esnap deploy`'s own code (embodied_snap.deploy.client) talking to them as to any serial port.
+
+The bus runs in its own process (as the servos are other hardware: the client's busy polling of
+the port must not starve it). The client writes the servo log and meta.json of a complete trial;
+the rig adds what its motion capture saw (240 Hz, mocap.py) and what the operator observes:
+attached (the cup sealed on the block's face), retrieved (it stayed on through the carry: a seal
+leaks with its tilt, as in the acquisition, acquire.py) and snap_speed_event. An aborted trial
+leaves only `aborted/<id>.json`, and no index row.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import multiprocessing as mp
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .. import rawformat as RF
+from ..deploy import client
+from ..io import parquet_rows
+from . import mocap as MC
+from . import truth as TR
+from .acquire import BLOCK_HALF
+from .stepper import Stepper
+from .vbus import VirtualBus
+
+T0 = _dt.datetime(2026, 5, 4, 9, 0, 0)  # the deployment day, after every acquisition session
+
+
+def block_at(p, normal) -> dict:
+    """The block with its struck (+z) face through the target point p, facing `normal`."""
+    from scipy.spatial.transform import Rotation
+
+    z = np.asarray(normal, float) / np.linalg.norm(normal)
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-6 else np.array([1.0, 0, 0])
+    R = np.stack([x, np.cross(z, x), z], 1)
+    qx = Rotation.from_matrix(R).as_quat()
+    return dict(pos=np.asarray(p, float) - z * BLOCK_HALF[2], quat=np.array([qx[3], qx[0], qx[1], qx[2]]), R=R,
+                normal=np.array([0.0, 0.0, 1.0]), half=np.array(BLOCK_HALF))
+
+
+def rig(man: dict, placement: int, session: str, seed: int, dt: float, gid: str, faults: dict | None = None):
+    """(bus, stepper, target, session params, rng) for one trial; the bus is not started."""
+    sess = TR.session_params(seed, session)
+    pl = man["placements"][placement - 1]
+    target = block_at(pl["target_m"], pl["normal"])
+    r = TR.rng_for(seed, "deployment", gid)
+    st = Stepper(TR.arm_params(sess), TR.servo_params(seed), dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r)
+    bus = VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults)
+    return bus, st, target, sess, r
+
+
+def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, session: str, k: int,
+           t_end: float, speed_mps: float) -> dict:
+    """Add the motion capture and the observed labels to a complete trial the client wrote."""
+    trial, _ = st.finish(t_end)
+    ev = trial.events
+    calib = dict(base_pos=sess["base_pos"], base_quat=sess["base_quat"])
+    mc = MC.mocap_frame(trial, calib, target, r)
+    p = RF.group_paths(raw, gid)
+    RF.write_parquet(mc, p["mocap"])
+    meta = RF.read_meta(p["meta"])
+    vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / st.dt
+    vtip = np.convolve(vtip, np.ones(4) / 4, mode="same")
+    attached = ev["sealed"] is not None
+    retained = attached and r.uniform() < 1.0 - ev.get("seal_tilt", 0.0) / 300.0  # tilted seals leak
+    R = MC.quat_to_mat(np.asarray(sess["base_quat"]))
+    axis = R @ np.array([0.0, -1.0, 0.0])
+    meta.update(session=session, source="twin", recorded_at=(T0 + _dt.timedelta(seconds=120 * k)).isoformat(),
+                base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
+                axis=[float(x) for x in axis / np.linalg.norm(axis)],
+                target=dict(size_m=[2 * h for h in BLOCK_HALF], face="+z"))
+    if "placement" in meta:
+        meta["program"]["placement"] = meta.pop("placement")
+    meta["labels"].update(attached=bool(attached), retrieved=bool(retained),
+                          snap_speed_event=bool(vtip.max() >= speed_mps))
+    if attached:
+        meta["labels"]["t_attach"] = round(float(ev["sealed"]), 4)
+    RF.write_json(meta, p["meta"])
+    return dict(group_id=gid, evidence_set="deployment", category="placement", session=session,
+                recorded_at=meta["recorded_at"], n_mocap=len(mc), n_servo=parquet_rows(p["servo"]))
+
+
+def _serve(conn, man, placement, session, seed, dt, gid, faults, raw, k, speed_mps):
+    """The rig's process: the bus until told the trial ended, then the physics and the mocap."""
+    bus, st, target, sess, r = rig(man, placement, session, seed, dt, gid, faults)
+    conn.send(bus.start())
+    msg = conn.recv()  # ("done", t_end) or ("aborted", None)
+    bus.stop()
+    out = dict(goals=bus.goals(), torque=bus.torque_states(), stopped_at=bus.stopped_at,
+               rx_bytes=bus.rx_bytes, tx_bytes=bus.tx_bytes)
+    if msg[0] == "done":
+        os.nice(5)  # the physics may wait; the other trial's bus may not
+        out["row"] = record(Path(raw), gid, st, target, sess, r, session, k, msg[1], speed_mps)
+    conn.send(out)
+
+
+class Rig:
+    """The simulated rig of one trial in its own process: `with Rig(...) as port:` then `finish`."""
+
+    def __init__(self, man: dict, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float,
+                 speed_mps: float = 1.0, faults: dict | None = None):
+        self.gid = f"{RF.PREFIX['deployment']}_{k:04d}"
+        session = f"s{(k - 1) % n_sessions + 1:02d}"  # session variation: trials spread over the sessions
+        self.conn, child = mp.get_context("fork").Pipe()
+        self.proc = mp.get_context("fork").Process(
+            target=_serve, args=(child, man, placement, session, seed, dt, self.gid, faults, str(raw), k, speed_mps),
+            daemon=True)
+        self.result = None
+
+    def __enter__(self) -> str:
+        self.proc.start()
+        return self.conn.recv()
+
+    def finish(self, t_end: float | None) -> dict:
+        """Tell the rig the trial ended (t_end: the last servo-log time, None when aborted)."""
+        if self.result is None:
+            self.conn.send(("done", t_end) if t_end is not None else ("aborted", None))
+            self.result = self.conn.recv()
+            self.proc.join(30)
+        return self.result
+
+    def __exit__(self, *exc):
+        self.finish(None)
+
+
+def run_trial(man_path, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float, speed_mps: float,
+              faults: dict | None = None, say=lambda s: None) -> dict:
+    """Trial k (1-based) at a placement, through the virtual bus. Returns its index row, or
+    {group_id, cause} when `esnap deploy` aborted (nothing enters the index then)."""
+    with open(man_path) as f:
+        man = json.load(f)
+    rig_ = Rig(man, placement, k, raw, seed, n_sessions, dt, speed_mps, faults)
+    with rig_ as port:
+        try:
+            res = client.run(man_path, port, man["placements"][placement - 1]["target_m"], out=raw,
+                             group_id=rig_.gid, meta_extra=dict(placement=placement), say=say)
+        except client.DeployError as e:
+            return dict(group_id=rig_.gid, cause=str(e))
+        out = rig_.finish(float(res["log"][-1, 0]) + 0.005)
+    return out["row"]

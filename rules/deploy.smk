@@ -1,0 +1,128 @@
+# Deployment (paper VI, Table II, Fig. 7; docs/deployment.md): the manifest exported from the
+# selected shared policy, the trials run through `esnap deploy` (with the simulated rig: over the
+# virtual Dynamixel bus; with a real rig: recorded in the lab into DEPLOY_RAW), Table II and Fig. 7.
+# The deployment recordings feed only Table II and Fig. 7 (esnap check-separation).
+
+DEPLOY = "results/deployment"
+DEPLOY_RAW = f"{RAW}/deployment"
+DCONF = config["deployment"]
+DBUDGET = BUDGET["deployment"]
+SHARED_RUNS = [
+    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
+]
+# Everything the manifest hashes: the separation proof re-hashes them (nothing changed after export).
+MANIFEST_INPUTS = dict(
+    runs=SHARED_RUNS,
+    workspace=f"{POL}/workspace.json",
+    servo="results/characterize/servo.json",
+    bank=f"{DYN}/hold_bank.npz",
+    snap="results/characterize/snap.json",
+    models=DMODELS,
+)
+MANIFEST_FILES = [
+    f for v in MANIFEST_INPUTS.values() for f in (v if isinstance(v, list) else [v])
+]
+
+
+rule deploy_manifest:
+    """Everything `esnap deploy` reads: the selected shared policy, ranges, workspace, envelope,
+    placements, calibration, code version and the sha256 of every input."""
+    input:
+        **MANIFEST_INPUTS,
+        schema="schemas/deployment_manifest.schema.json",
+        code=imports("deploy_manifest"),
+    output:
+        f"{DEPLOY}/manifest.json",
+    log:
+        "logs/deployment/manifest.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        deployment=DCONF,
+        policy=PCFG,
+        placements=DBUDGET["placements"],
+        protocol=protocol_params("primitive", "rig"),
+    script:
+        "../workflow_scripts/deploy_manifest.py"
+
+
+if TWIN:
+
+    rule twin_deployment:
+        """The trials through the virtual Dynamixel bus on the simulated rig, two at a time."""
+        input:
+            manifest=f"{DEPLOY}/manifest.json",
+            code=imports("twin_deployment"),
+        output:
+            index=f"{DEPLOY_RAW}/index.csv",
+            groups=directory(f"{DEPLOY_RAW}/groups"),
+            aborted=f"{DEPLOY_RAW}/aborted.json",
+        log:
+            "logs/deployment/trials.log",
+        benchmark:
+            "benchmarks/deployment/trials.tsv"
+        conda:
+            "../envs/esnap.yaml"
+        threads: 2
+        params:
+            placements=DBUDGET["placements"],
+            trials_per_placement=DBUDGET["trials_per_placement"],
+            seed=config["seed"],
+            sessions=config["sessions"],
+            dt=config["twin"]["dt"],
+            speed_mps=config["characterize"]["attach_speed_mps"],
+        script:
+            "../workflow_scripts/twin_deployment.py"
+
+
+rule deploy_table:
+    """Table II from the deployment recordings, and results/deployment/claims.csv."""
+    input:
+        index=f"{DEPLOY_RAW}/index.csv",
+        groups=f"{DEPLOY_RAW}/groups",
+        aborted=f"{DEPLOY_RAW}/aborted.json",
+        manifest=f"{DEPLOY}/manifest.json",
+        reference="reference/paper_values.yaml",
+        code=imports("deploy_table"),
+    output:
+        trials=f"{DEPLOY}/trials.csv",
+        summary=f"{DEPLOY}/summary.json",
+        claims=f"{DEPLOY}/claims.csv",
+        csv="results/tables/table2_deployment.csv",
+        md="results/tables/table2_deployment.md",
+        tex="results/tables/table2_deployment.tex",
+    log:
+        "logs/deployment/table.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        bend_deg=DCONF["preload_bend_deg"],
+        fast_mps=DCONF["fast_snap_mps"],
+    script:
+        "../workflow_scripts/deploy_table.py"
+
+
+rule fig_deployment:
+    """Fig. 7: a successful trial recorded (top) and predicted by the dynamics model (bottom)."""
+    input:
+        **SIMULATOR,
+        trials=f"{DEPLOY}/trials.csv",
+        groups=f"{DEPLOY_RAW}/groups",
+        code=imports("fig_deployment"),
+    output:
+        pdf="results/figs/fig7_deployment.pdf",
+        png=report(
+            "results/figs/fig7_deployment.png",
+            caption="../report/fig7_deployment.rst",
+            category="Deployment",
+        ),
+    log:
+        "logs/fig_deployment.log",
+    benchmark:
+        "benchmarks/deployment/fig.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        **SIM_PARAMS,
+    script:
+        "../workflow_scripts/fig_deployment.py"

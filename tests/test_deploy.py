@@ -1,0 +1,300 @@
+"""Deployment (docs/deployment.md): the manifest, `esnap deploy` and the virtual Dynamixel bus.
+
+Every fault runs the real client (embodied_snap.deploy.client, dynamixel-sdk) against the virtual
+bus on a pseudo-terminal, with a manifest whose schedule is short (about 1.5 s a trial). Each ends
+with one line naming the cause, the servos' torque off or stopped as read from the bus, every goal
+the bus received inside the envelope, and no recording of the aborted trial.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from embodied_snap import protocol
+from embodied_snap.deploy import client
+from embodied_snap.deploy import commands as C
+from embodied_snap.deploy import manifest as MF
+from embodied_snap.lineage.checks import deployment_violations
+from embodied_snap.policy import geometry, networks
+from embodied_snap.twin.stepper import Stepper
+from embodied_snap.twin.vbus import VirtualBus, crc16, packet, parse, stuff, unstuff
+
+ROOT = Path(__file__).resolve().parent.parent
+FAST = dict(hang_s=0.1, settle_s=0.1, s2_delay_s=0.1, after_s1_s=0.2, plan_margin=0.9, carry_s=0.2,
+            carry_hold_s=0.1, carry_ticks=300)
+
+
+def _workspace(rng) -> dict:
+    n = np.array([0.0, -1.0, 0.0])
+    b = np.deg2rad(rng.uniform(195, 235, 60))
+    r, y = rng.uniform(0.45, 0.75, 60), rng.uniform(-0.7, -0.2, 60)
+    P = np.stack([r * np.cos(b), y, r * np.sin(b)], 1)
+    D = np.tile([0.6, -0.6, 0.5], (60, 1))
+    return dict(hanging_axis=n.tolist(), phi0_deg=210.0, delta_str_deg=5.0, n_strikes=60,
+                strike_points_m=P.round(5).tolist(), strike_dirs=(D / np.linalg.norm(D, axis=1)[:, None]).tolist(),
+                bin_lo_deg=160.0, bin_width_deg=10.0, rho_max=[[3600.0, 3250.0, 3550.0]] * 11)
+
+
+@pytest.fixture(scope="module")
+def man_path(tmp_path_factory) -> Path:
+    """A manifest exported from a synthetic policy run and workspace, with a short schedule."""
+    d = tmp_path_factory.mktemp("manifest")
+    rng = np.random.default_rng(3)
+    cfg = yaml.safe_load(open(ROOT / "config.yaml"))
+    ws = _workspace(rng)
+    g = geometry.features(np.asarray(ws["strike_points_m"]), np.asarray(ws["hanging_axis"]))
+    run = dict(arch="shared", seed=0, n_params=networks.n_params("shared"), selection_reward=0.4,
+               selected_generation=3, theta=rng.normal(0, 0.3, networks.n_params("shared")).tolist(),
+               norm=dict(mu=g.mean(0).tolist(), sd=g.std(0).tolist()))
+    (d / "run.json").write_text(json.dumps(run))
+    proto = protocol.params(cfg, "primitive", "rig")
+    proto["rig"]["rated_speed_tick_s"] = 30000.0  # a short preload ramp: the test is about the bus
+    dcfg = dict(cfg["deployment"], schedule=FAST, policy=cfg["policy"], n_placements=3)
+    man = MF.build({"policy_run": d / "run.json"}, run, ws, dict(lever_ticks_per_rad=[2300, 1450, 1440],
+                   ceiling_rad_s=[1.3, 2.1, 2.1]), dcfg, proto, {}, {})
+    p = d / "manifest.json"
+    p.write_text(json.dumps(man))
+    return p
+
+
+def _man(p):
+    return json.loads(Path(p).read_text())
+
+
+def _bus(man: dict, faults=None) -> VirtualBus:
+    st = Stepper({}, dict(rate=[3100.0] * 9, tau=[0.03] * 9), 0.001, {})
+    return VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults)
+
+
+def _run(man_path, out, faults=None, target=None, linger=0.05):
+    man = _man(man_path)
+    with _bus(man, faults) as bus:
+        try:
+            client.run(man_path, bus.port, target or man["placements"][1]["target_m"], out=out, say=lambda s: None)
+            cause = None
+        except client.DeployError as e:
+            cause = str(e)
+        time.sleep(linger)
+    return cause, bus
+
+
+def _inside_envelope(man, bus):
+    G = bus.goals()
+    lo, hi = (np.asarray(man["envelope"][k]) for k in ("goal_min", "goal_max"))
+    ids = G[:, 1].astype(int) - 1
+    assert np.all((G[:, 2] >= lo[ids]) & (G[:, 2] <= hi[ids]))
+
+
+def _aborted(out: Path):
+    assert not (out / "groups" / "dep_0001").exists()
+    assert json.loads((out / "aborted" / "dep_0001.json").read_text())["cause"]
+
+
+# --- protocol --------------------------------------------------------------------------------------
+
+
+def test_packet_crc_and_stuffing():
+    # Robotis e-manual, Protocol 2.0 PING example: FF FF FD 00 01 03 00 01 19 4E
+    assert packet(1, 0x01, b"") == bytes.fromhex("fffffd000103000119 4e".replace(" ", ""))
+    assert crc16(bytes.fromhex("fffffd0001030001")) == 0x4E19
+    body = b"\x01\xff\xff\xfd\x02"
+    assert stuff(body) == b"\x01\xff\xff\xfd\xfd\x02" and unstuff(stuff(body)) == body
+    p = packet(7, 0x03, b"\x74\x00\xff\xff\xfd\x00")
+    (pid, inst, params, ok), = parse(bytearray(b"\x00junk" + p))[0]
+    assert (pid, inst, params, ok) == (7, 0x03, b"\x74\x00\xff\xff\xfd\x00", True)
+
+
+# --- manifest and commands ---------------------------------------------------------------------------
+
+
+def test_manifest_checksum_and_schema(man_path):
+    import jsonschema
+
+    man = MF.load(man_path)
+    jsonschema.validate(man, json.load(open(ROOT / "schemas/deployment_manifest.schema.json")))
+    man["policy"]["theta"][0] += 1e-6
+    with pytest.raises(MF.ManifestError, match="checksum mismatch"):
+        p = man_path.parent / "tampered.json"
+        p.write_text(json.dumps(man))
+        MF.load(p)
+
+
+def test_schedule_is_frozen_and_inside_the_envelope(man_path):
+    man = _man(man_path)
+    for pl in man["placements"]:
+        plan = C.plan(man, pl["target_m"])
+        assert not plan["goals"].flags.writeable and plan["goals"].dtype.kind == "i"
+        ph = plan["phases"]
+        assert ph["t_preload"] < ph["t_slack"] < ph["t_s2"] < ph["t_s1"] < ph["t_carry"] < ph["t_end"]
+    bad = dict(man, envelope=dict(man["envelope"], goal_max=[10.0] * 9))
+    with pytest.raises(C.RefusedTarget, match="outside the envelope"):
+        C.plan(bad, man["placements"][0]["target_m"])
+
+
+def test_deploy_needs_only_numpy_and_dynamixel_sdk(man_path):
+    """The lab PC: `esnap deploy` (dry run) loads no torch, pandas, scipy, mujoco, yaml or snakemake."""
+    code = ("import sys; from embodied_snap.cli import main; import embodied_snap.deploy.client as c; c._sdk();"
+            f"main(['deploy', '--manifest', '{man_path}', '--placement', '1', '--dry-run']);"
+            "heavy = {'torch', 'pandas', 'scipy', 'mujoco', 'yaml', 'snakemake', 'matplotlib', 'sklearn'};"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True)
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+    assert "commands: rho1" in out.stdout
+
+
+# --- a complete trial: open loop, read back >= 50 Hz, written in the rig format ---------------------
+
+
+def test_complete_trial_is_open_loop_and_recorded(man_path, tmp_path):
+    import pandas as pd
+
+    man = _man(man_path)
+    cause, bus = _run(man_path, tmp_path)
+    assert cause is None
+    plan = C.plan(man, man["placements"][1]["target_m"])
+    G = bus.goals()
+    got = G[G[:, 3] == 1][:, 2].reshape(-1, 9)  # every goal the servos applied, in order
+    assert np.array_equal(got, plan["goals"])  # nothing read back changed a command
+    sv = pd.read_parquet(tmp_path / "groups/dep_0001/servo.parquet")
+    assert np.array_equal(sv[[f"goal_{i}" for i in range(1, 10)]].to_numpy(), plan["goals"])
+    assert np.median(np.diff(sv.t)) <= 1 / 50
+    meta = json.loads((tmp_path / "groups/dep_0001/meta.json").read_text())
+    assert meta["manifest_sha256"] == man["checksum"] and meta["evidence_set"] == "deployment"
+    assert not any(bus.torque_states())
+
+
+# --- safety and faults -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("faults, cause", [
+    ({"no_reply": {"id": 5, "at_s": 0.3}}, "timeout: no reply from servo 5"),
+    ({"bad_crc": {"at_s": 0.3}}, "CRC error"),
+    ({"hw_error": {"id": 4, "at_s": 0.3}}, "hardware error on servo 4"),
+    ({"model": {"id": 2, "number": 1060}}, "servo 2: model number 1060"),
+    ({"eeprom": {"id": 3}}, "servo 3: EEPROM position limits"),
+])
+def test_fault_stops_with_torque_off(man_path, tmp_path, faults, cause):
+    man = _man(man_path)
+    got, bus = _run(man_path, tmp_path, faults)
+    assert got is not None and cause in got and "\n" not in got
+    assert not any(bus.torque_states())  # read from the bus
+    _inside_envelope(man, bus)
+    _aborted(tmp_path)
+
+
+def test_tampered_manifest_is_refused(man_path, tmp_path):
+    man = _man(man_path)
+    man["policy"]["theta"][7] *= 1.01
+    p = tmp_path / "tampered.json"
+    p.write_text(json.dumps(man))
+    with _bus(man) as bus:
+        with pytest.raises(client.DeployError, match="refused: .*checksum mismatch"):
+            client.run(p, bus.port, man["placements"][0]["target_m"], out=tmp_path, say=lambda s: None)
+    assert len(bus.goals()) == 0 and not any(bus.torque_states())
+    assert not (tmp_path / "groups").exists()
+
+
+def test_target_outside_the_workspace_is_refused(man_path, tmp_path):
+    got, bus = _run(man_path, tmp_path, target=[0.0, -0.1, 0.0])
+    assert got.startswith("refused: target") and "outside the workspace" in got
+    assert len(bus.goals()) == 0
+
+
+def test_port_closed_mid_trial(man_path, tmp_path):
+    """The adapter is gone: the client says so; the servos' bus watchdog stops them within its period."""
+    man = _man(man_path)
+    got, bus = _run(man_path, tmp_path, {"close": {"at_s": 0.3}}, linger=man["servos"]["watchdog_ms"] / 1000 + 0.1)
+    assert "port closed" in got or "no reply" in got
+    assert bus.closed and set(bus.stopped_at) == set(range(1, 10))
+    assert max(bus.stopped_at.values()) - bus.last_rx_t <= man["servos"]["watchdog_ms"] / 1000 + 1e-6
+    _inside_envelope(man, bus)
+    _aborted(tmp_path)
+
+
+def _subprocess_trial(man_path, tmp_path, sig):
+    man = _man(man_path)
+    bus = _bus(man).__enter__()
+    try:
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        proc = subprocess.Popen([sys.executable, "-m", "embodied_snap.cli", "deploy", "--manifest", str(man_path),
+                                 "--port", bus.port, "--placement", "2", "--yes", "--out", str(tmp_path)],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+        while bus.now() < 0.4 and proc.poll() is None:
+            time.sleep(0.01)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=20)
+        time.sleep(man["servos"]["watchdog_ms"] / 1000 + 0.05)
+        return proc.returncode, err, bus, man
+    finally:
+        bus.stop()
+
+
+def test_sigint_mid_trial(man_path, tmp_path):
+    rc, err, bus, man = _subprocess_trial(man_path, tmp_path, signal.SIGINT)
+    assert rc == 1 and "interrupted (SIGINT)" in err and "torque off on all servos" in err
+    assert not any(bus.torque_states())
+    _inside_envelope(man, bus)
+    _aborted(tmp_path)
+
+
+def test_sigkill_mid_trial_the_watchdog_stops_the_servos(man_path, tmp_path):
+    rc, _, bus, man = _subprocess_trial(man_path, tmp_path, signal.SIGKILL)
+    assert rc == -signal.SIGKILL
+    period = man["servos"]["watchdog_ms"] / 1000
+    assert set(bus.stopped_at) == set(range(1, 10))
+    # stopped one watchdog period after the killed client's last packet, and never moved again
+    assert max(bus.stopped_at.values()) - bus.last_rx_t <= period + 1e-6
+    rows = np.asarray(bus.stepper.rows)
+    k = int(max(bus.stopped_at.values()) / bus.stepper.dt) + 1
+    assert np.allclose(rows[k:], rows[k])
+    _inside_envelope(man, bus)
+    assert not (tmp_path / "groups" / "dep_0001").exists()
+
+
+# --- nothing upstream of the manifest changed after export -------------------------------------------
+
+
+def test_separation_sees_a_changed_input_or_another_manifest(man_path, tmp_path):
+    root = tmp_path
+    (root / "results/deployment").mkdir(parents=True)
+    man = _man(man_path)
+    run = root / "run.json"
+    run.write_text(Path(man["inputs"]["policy_run"]["path"]).read_text())
+    man["inputs"]["policy_run"]["path"] = "run.json"
+    man["checksum"] = MF.checksum(man)
+    (root / "results/deployment/manifest.json").write_text(json.dumps(man))
+    g = root / "raw_data/deployment/groups/dep_0001"
+    g.mkdir(parents=True)
+    (g / "meta.json").write_text(json.dumps(dict(manifest_sha256=man["checksum"])))
+    assert deployment_violations(root, "raw_data") == ([], 1)
+    (g / "meta.json").write_text(json.dumps(dict(manifest_sha256="0" * 64)))
+    run.write_text(run.read_text() + " ")
+    v, _ = deployment_violations(root, "raw_data")
+    assert len(v) == 2 and "changed after the manifest was exported" in v[0] and "ran manifest 000000000000" in v[1]
+
+
+def test_table2_counts_and_paper_column():
+    import pandas as pd
+
+    from embodied_snap.characterize import deployment as D
+
+    df = pd.DataFrame(dict(placement=[1, 1, 2, 3], s2_bend_increase_deg=[120.0, 109.0, 130.0, 111.0],
+                           v_peak_mps=[1.2, 0.9, 1.5, 1.0], retrieved=[True, False, False, True],
+                           attached=[True, False, True, True], open_loop=[True] * 4))
+    s = D.summarize(df, 5, 3, 110.0, 1.0, aborted=1)
+    assert (s["preload_reached"], s["fast_snap"], s["retrieved"], s["placements_retrieved"]) == (3, 3, 2, 2)
+    assert s["peak_speed_median_mps"] == pytest.approx(1.1) and s["online_correction"] == "none"
+    t = D.table2(s, 110.0, 1.0)
+    assert t.result.tolist()[0] == "3/5" and t.paper.tolist()[0] == "18/18" and t.paper.tolist()[-1] == "none"
+    mixed = df.assign(open_loop=[True, False, True, True])
+    assert D.summarize(mixed, 5, 3, 110.0, 1.0, 0)["online_correction"] != "none"

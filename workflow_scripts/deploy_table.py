@@ -1,0 +1,32 @@
+"""Table II (paper VI) from the deployment recordings, through the characterisation code, and the
+deployment claims beside the paper's values."""
+
+import json
+import sys
+
+import pandas as pd
+
+from embodied_snap.characterize import deployment as D
+from embodied_snap.lineage.records import tracked
+from embodied_snap.rawformat import write_json
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    I, O, P = snakemake.input, snakemake.output, snakemake.params
+    man = json.load(open(I.manifest))
+    raw = I.groups.rsplit("/groups", 1)[0]
+    index = pd.read_csv(I.index)
+    aborted = json.load(open(I.aborted))
+    trials = pd.DataFrame([D.trial(raw, g, man) for g in index.group_id],
+                          columns=None if len(index) else ["group_id", "placement", "v_peak_mps", "retrieved",
+                                                           "attached", "open_loop", "s2_bend_increase_deg"])
+    trials.to_csv(O.trials, index=False, lineterminator="\n")
+    s = D.summarize(trials, aborted["planned"], len(man["placements"]), P.bend_deg, P.fast_mps,
+                    len(aborted["aborted"]))
+    write_json(s, O.summary)
+    t2 = D.table2(s, P.bend_deg, P.fast_mps, I.reference)
+    print(t2.to_string(), file=sys.stderr)
+    t2.to_csv(O.csv, index=False, lineterminator="\n")
+    open(O.md, "w").write(D.markdown(t2))
+    open(O.tex, "w").write(D.latex(t2))
+    pd.DataFrame(D.claims(s, man, I.reference)).to_csv(O.claims, index=False, lineterminator="\n")

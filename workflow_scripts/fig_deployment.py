@@ -1,0 +1,41 @@
+"""Fig. 7: a successful deployment trial, recorded (top) and as the dynamics model predicts it for
+the same commands (bottom), rendered offscreen by MuJoCo."""
+
+import os
+import sys
+
+os.environ.setdefault("MUJOCO_GL", "egl")  # headless rendering
+
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from embodied_snap.characterize import load  # noqa: E402
+from embodied_snap.figures import deployment as F  # noqa: E402
+from embodied_snap.lineage.records import tracked  # noqa: E402
+from embodied_snap.policy.simulate import for_job  # noqa: E402
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    I, P = snakemake.input, snakemake.params
+    trials = pd.read_csv(I.trials)
+    if trials.empty:  # every trial aborted or was rejected: say so in the figure, do not invent one
+        F.empty(snakemake.output.pdf, snakemake.output.png)
+        sys.exit(0)
+    ok = trials[trials.retrieved] if trials.retrieved.any() else trials[trials.attached]
+    pick = (ok if len(ok) else trials.sort_values("v_peak_mps", ascending=False)).iloc[0]
+    raw = I.groups.rsplit("/groups", 1)[0]
+    mc, _, meta = load.group(raw, pick.group_id)
+    times = F.moments(mc, meta)
+    top = F.recorded_frames(mc, meta, times, P.ee_m)
+    sim, _ = for_job(I, P)
+    bottom = F.predicted_frames(sim, meta, times, top[0]["points"], P.ee_m)
+    for b, t in zip(bottom, top):
+        b["block"] = t["block"]
+    bearing = float(meta["program"]["bearing"])
+    base = np.asarray(top[0]["points"][0])
+    what = "retrieved" if pick.retrieved else "attached" if pick.attached else "no attachment in this run"
+    print(f"trial {pick.group_id} ({what}); moments {times}", file=sys.stderr)
+    F.plot(F.render(top, base, bearing), F.render(bottom, base, bearing),
+           [f"{k} ({times[k]:.2f} s)" for k in F.MOMENTS],
+           f"{pick.group_id}, placement {int(pick.placement)}: {what}; peak tip speed {pick.v_peak_mps:.2f} m/s",
+           snakemake.output.pdf, snakemake.output.png)
