@@ -53,6 +53,10 @@ if [ ${#missing[@]} -gt 0 ]; then
     done
 fi
 [ "$(id -u)" = 0 ] || die "the daemons run as root here (SlurmUser=root); run as root"
+# One local cluster at a time on a machine (ports 6817/6818, /etc/slurm/slurm.conf): a second
+# `make cluster-test` (another CI run) waits here.
+exec 9> /tmp/esnap-cluster-test.lock
+flock 9
 
 # --- 2. configuration ---------------------------------------------------------------------------
 W=$(mktemp -d /tmp/esnap-cluster.XXXXXX)
@@ -188,5 +192,5 @@ for s in "${CLAIMS[@]}"; do
     cmp -s "$W/slurm/$f" "$W/local/$f" || die "$f differs between SLURM and local runs"
 done
 say "claims tables identical (SLURM vs local --cores 2): ${CLAIMS[*]}"
-say "SLURM jobs submitted: $JOBS (one cancelled, then rerun)"
+say "SLURM jobs submitted: $JOBS (both runs; one job cancelled, then rerun)"
 say "wall time: $((SECONDS - START)) s (SLURM part $SLURM_S s)"
