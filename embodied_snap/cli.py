@@ -156,6 +156,38 @@ def cmd_prov(a) -> int:
     return 0
 
 
+def cmd_claims(a) -> int:
+    """The claims ledger, filtered by paper section and status."""
+    from .paper.ledger import count_line, read
+
+    path = Path(a.root) / a.ledger
+    if not path.exists():
+        print(f"error: {a.ledger}: no claims ledger (run: snakemake results/tables/claims.csv)", file=sys.stderr)
+        return 1
+    rows = [r for r in read(path) if (not a.section or r["section"] in a.section)
+            and (not a.status or r["status"] in a.status)]
+    print(count_line(rows))
+    w = max([len(r["claim_id"]) for r in rows] + [8])
+    for r in rows:
+        doc = f"  -> {r['explained_in']}" if r["explained_in"] else ""
+        print(f"{r['section']:<8} {r['claim_id']:<{w}} paper {r['paper'] or '-':<16} ours {r['ours'] or '-':<20} "
+              f"{r['unit']:<10} {r['status']}{doc}")
+    return 0
+
+
+def cmd_crate(a) -> int:
+    from .paper.crate import verify, write
+
+    if a.verify:
+        bad = verify(a.root, a.out.rstrip("/"))
+        for b in bad:
+            print(f"error: {b}")
+        print("crate matches results/" if not bad else f"{len(bad)} result file(s) differ from the crate")
+        return 1 if bad else 0
+    print(write(a.root, a.out.rstrip("/")))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="esnap", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -200,6 +232,20 @@ def main(argv: list[str] | None = None) -> int:
     pr.add_argument("--root", default=".")
     pr.add_argument("--out", default="results/lineage/prov.json")
     pr.set_defaults(fn=cmd_prov)
+
+    cl = sub.add_parser("claims", help="the claims ledger: every paper number beside ours, by section and status")
+    cl.add_argument("--section", action="append", help="only this paper section, e.g. III-B (repeatable)")
+    cl.add_argument("--status", action="append", choices=["agrees", "differs", "not measured", "no paper value"],
+                    help="only claims with this status (repeatable)")
+    cl.add_argument("--root", default=".")
+    cl.add_argument("--ledger", default="results/tables/claims.csv")
+    cl.set_defaults(fn=cmd_claims)
+
+    cr = sub.add_parser("crate", help="write the run as a Workflow Run RO-Crate (or --verify it against results/)")
+    cr.add_argument("--out", default="results/crate/")
+    cr.add_argument("--root", default=".")
+    cr.add_argument("--verify", action="store_true", help="check that every result file is in it with its sha256")
+    cr.set_defaults(fn=cmd_crate)
 
     a = p.parse_args(argv)
     return a.fn(a)

@@ -20,10 +20,7 @@ rule check_separation:
             "results/ablation/targets_{name}.parquet", name=("offset", "release")
         ),
         # the claims tables come after every model, policy and target set: all records exist
-        claims=expand(
-            "results/{stage}/claims.csv",
-            stage=("characterize", "dynamics", "policy", "ablation"),
-        ),
+        claims=claims_tables,
         code=imports("check_separation"),
     output:
         "results/lineage/separation.json",
@@ -55,3 +52,18 @@ rule prov_export:
         raw=lambda wc, input: os.path.dirname(input.index),
     script:
         "../workflow_scripts/prov_export.py"
+
+
+rule crate:
+    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product."""
+    input:
+        lambda wc: PRODUCTS,
+        code=imports("crate"),
+    output:
+        "results/crate/ro-crate-metadata.json",
+    log:
+        "logs/crate.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/crate.py"

@@ -47,6 +47,9 @@ EXEMPT_MODULES = frozenset({PACKAGE, f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.r
 # writes, code (declared and checked as modules), and hidden folders (.snakemake, .venv, .git).
 _NOT_DATA = ("logs/", "benchmarks/", f"{PACKAGE}/", "workflow_scripts/")
 DEFAULT_RAW = "raw_data"
+# Written after the run, by `snakemake --report` and its browser check: they describe the run, no
+# job writes them, so they have no record (docs/report.md).
+AFTER_RUN = ("results/report.html", "results/report.png")
 
 
 class UndeclaredInput(RuntimeError):
