@@ -188,6 +188,18 @@ def cmd_crate(a) -> int:
     return 0
 
 
+def cmd_report_check(a) -> int:
+    from .paper.browser import check_report
+
+    res = check_report(a.html, a.screenshot)
+    for path, what in res["results"].items():
+        print(f"{path}: {what}")
+    for prob in res["problems"]:
+        print(f"error: {prob}")
+    print("report ok" if not res["problems"] else f"{len(res['problems'])} problem(s)")
+    return 1 if res["problems"] else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="esnap", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -246,6 +258,11 @@ def main(argv: list[str] | None = None) -> int:
     cr.add_argument("--root", default=".")
     cr.add_argument("--verify", action="store_true", help="check that every result file is in it with its sha256")
     cr.set_defaults(fn=cmd_crate)
+
+    rc = sub.add_parser("report-check", help="open the HTML report in headless Chromium: every figure and table shown")
+    rc.add_argument("html", nargs="?", default="results/report.html")
+    rc.add_argument("--screenshot", default="results/report.png")
+    rc.set_defaults(fn=cmd_report_check)
 
     a = p.parse_args(argv)
     return a.fn(a)

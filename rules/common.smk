@@ -165,7 +165,8 @@ def category(name):
 
 def claims_tables(wildcards=None):
     """Every stage's claims table, from the rules that write one (results/<stage>/claims.csv):
-    a new stage's table joins the ledger and the separation proof without an edit here."""
+    a new stage's table joins the ledger and the separation proof without an edit here.
+    """
     return sorted(
         {
             str(f)

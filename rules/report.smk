@@ -69,7 +69,7 @@ rule fig_system:
         raw=raw_of(group_id=FIG1_GROUP),
         validated=validated(group_id=FIG1_GROUP),
         summary="results/policy/summary.json",
-        evals=[e for e in POLICY_EVALS if "/shared_seed" in e],
+        evals=[e for e in POLICY_EVALS if Path(e).stem.startswith("shared_seed")],
         code=imports("fig_system"),
     output:
         pdf="results/figs/fig1_system.pdf",

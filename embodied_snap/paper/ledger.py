@@ -78,12 +78,21 @@ def claims_files(root=".") -> list[str]:
     return sorted(p.relative_to(root).as_posix() for p in Path(root).glob("results/*/claims.csv"))
 
 
-def _fed_by(rep: dict) -> str:
+def _fed_by(*reps: dict) -> str:
+    """Evidence sets, groups fed / total and split roles behind one or more audits, merged."""
+    sets: dict[str, dict] = {}
+    for rep in reps:
+        for es, s in rep["evidence_sets"].items():
+            d = sets.setdefault(es, dict(total=s["n_total"], fed={}))
+            d["fed"].update({g: v["role"] for g, v in s["fed"].items()})
     parts = []
-    for es, s in rep["evidence_sets"].items():
-        if s["n_fed"]:
-            roles = ", ".join(f"{k} {v}" for k, v in sorted(s["roles"].items()) if k and k != es)
-            parts.append(f"{es} {s['n_fed']}/{s['n_total']}" + (f" ({roles})" if roles else ""))
+    for es, d in sorted(sets.items(), key=lambda kv: (-len(kv[1]["fed"]), kv[0])):
+        if d["fed"]:
+            roles: dict[str, int] = {}
+            for r in d["fed"].values():
+                roles[r] = roles.get(r, 0) + 1
+            rs = ", ".join(f"{k} {v}" for k, v in sorted(roles.items()) if k and k != es)
+            parts.append(f"{es} {len(d['fed'])}/{d['total']}" + (f" ({rs})" if rs else ""))
     return "; ".join(parts)
 
 
@@ -114,7 +123,7 @@ def ledger(files, root=".") -> list[dict]:
         for a in arts:
             if a not in audits:
                 audits[a] = audit(a, root, check_disk=False)
-        fed = " | ".join(dict.fromkeys(_fed_by(audits[a]) for a in arts)) if arts else ""
+        fed = _fed_by(*(audits[a] for a in arts))
         with open(root / f, newline="") as fh:
             for r in csv.DictReader(fh):
                 try:
