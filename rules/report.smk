@@ -48,24 +48,11 @@ rule figures:
         "../workflow_scripts/figures.py"
 
 
-rule twin_render:
-    """Fig. 1a: the arm rendered offscreen from the simulated rig's MuJoCo model."""
-    input:
-        code=imports("twin_render"),
-    output:
-        "results/twin/render.png",
-    log:
-        "logs/twin_render.log",
-    conda:
-        "../envs/esnap.yaml"
-    script:
-        "../workflow_scripts/twin_render.py"
-
-
 rule fig_system:
     """Fig. 1: the arm, the primitive on a recorded strike, the shared policy's commands."""
     input:
-        render="results/twin/render.png",
+        # the simulated rig's model rendered; with recordings of a real rig, panel (a) draws the strike
+        render=["results/twin/render.png"] if TWIN else [],
         raw=raw_of(group_id=FIG1_GROUP),
         validated=validated(group_id=FIG1_GROUP),
         summary="results/policy/summary.json",

@@ -42,15 +42,24 @@ def plot_system(render_png, mocap: pd.DataFrame, servo: pd.DataFrame, meta: dict
                           left=0.01, right=0.99, top=0.9, bottom=0.13)
     # (a)
     ax = fig.add_subplot(gs[:, 0])
-    img = mpimg.imread(render_png)
-    ink = np.argwhere((img[..., :3] < 0.95).any(-1))  # crop the white margin around the arm
-    (r0, c0), (r1, c1) = ink.min(0), ink.max(0)
-    pad = 20
-    ax.imshow(img[max(r0 - pad, 0) : r1 + pad, max(c0 - pad, 0) : c1 + pad])
-    ax.set_axis_off()
-    ax.set_title("(a) arm (twin model)", loc="left")
-    # (b)
     lab = meta.get("labels", {})
+    if render_png is not None:
+        img = mpimg.imread(render_png)
+        ink = np.argwhere((img[..., :3] < 0.95).any(-1))  # crop the white margin around the arm
+        (r0, c0), (r1, c1) = ink.min(0), ink.max(0)
+        pad = 20
+        ax.imshow(img[max(r0 - pad, 0) : r1 + pad, max(c0 - pad, 0) : c1 + pad])
+        ax.set_axis_off()
+        ax.set_title("(a) arm (twin model)", loc="left")
+    else:  # a real rig: the tracked bodies of the strike when the S3 release starts
+        k = int(np.argmin(np.abs(mocap.t.to_numpy() - float(lab.get("t_slack", mocap.t.iloc[0])))))
+        pts = np.array([[mocap[f"{b}_{c}"].iloc[k] for c in "xy"] for b in ("base", "s1", "s2", "tip")])
+        for s in range(3):
+            ax.plot(pts[s : s + 2, 0], pts[s : s + 2, 1], color=PALETTE[s], lw=3, marker="o", ms=3)
+        ax.set_aspect("equal")
+        ax.set_axis_off()
+        ax.set_title("(a) arm, tracked", loc="left")
+    # (b)
     t0 = float(lab.get("t_preload", 0.0))
     t1 = float(lab.get("t_s1", servo.t.max())) + 0.8
     s = servo[(servo.t >= t0 - 0.3) & (servo.t <= t1)]
