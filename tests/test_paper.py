@@ -124,7 +124,7 @@ def test_crate_lists_every_result_once_and_fails_when_one_changes(tmp_path):
     crate.write(tmp_path)
     assert crate.verify(tmp_path) == []
     c = ROCrate(tmp_path / "results/crate")
-    assert c.mainEntity.id == "../../Snakefile"
+    assert c.mainEntity.id == "Snakefile"
     jobs = [e for e in c.get_entities() if e.type == "CreateAction" and e.id.startswith("#job-")]
     assert len(jobs) == 3 and all(e["instrument"].type == "SoftwareApplication" for e in jobs)
     meta = json.loads((tmp_path / "results/crate/ro-crate-metadata.json").read_text())

@@ -14,7 +14,7 @@ CHROMIUM = os.environ.get("ESNAP_CHROMIUM", "/usr/bin/chromium")
 
 def check_report(html, screenshot=None, show: str | None = None, only=None) -> dict:
     """{results: {path: what was seen}, problems: [one line each]}; a screenshot of `show` (a result
-    path; default the first image) when `screenshot` is given; `only`: the categories holding these
+    path; default Fig. 1, else the first image) when `screenshot` is given; `only`: the categories holding these
     result paths (default: every category)."""
     from playwright.sync_api import sync_playwright
 
@@ -41,7 +41,8 @@ def check_report(html, screenshot=None, show: str | None = None, only=None) -> d
                 page.locator("a[iconname=eye]").nth(k).click()
                 seen[path] = _shown(page, path, problems)
         if screenshot:
-            target = show or next((r for r in seen if r.endswith(".png")), None)
+            pngs = [r for r in seen if r.endswith(".png")]
+            target = show or next((r for r in pngs if "fig1_" in r), pngs[0] if pngs else None)
             if target:
                 cat = next(c for c, subs in categories.items() if any(target in rs for rs in subs.values()))
                 page.goto(html.as_uri())
@@ -65,8 +66,11 @@ def _shown(page, path: str, problems: list) -> str:
             problems.append(f"{path}: not shown ({type(e).__name__})")
             return "missing"
         w = img.evaluate("i => i.naturalWidth")
+        decodes = img.evaluate("i => i.decode().then(() => true, () => false)")
         if not w:
             problems.append(f"{path}: the image does not load (naturalWidth 0)")
+        elif not decodes:
+            problems.append(f"{path}: the image does not decode")
         return f"image {w} px wide"
     if path.endswith((".html", ".htm")):
         frame = page.locator("iframe")

@@ -5,15 +5,19 @@ parts); every rule is a HowToStep of it, whose tool is the rule's script; every 
 CreateAction (instrument: the rule's tool; object: its input files; result: its output files, each
 File with the sha256 its record holds) with a ControlAction tying it to its step; an OrganizeAction
 is the engine's run, a CreateAction of the workflow its whole: the config as object, every result
-as result. Software versions come from the records. Files are addressed relative to the crate's
-folder (`../../raw_data/...` from results/crate/), so the crate describes the files in place and
-copies none. PROV-JSON (results/lineage/prov.json) stays beside it.
+as result. Software versions come from the records. Files are addressed by their path relative to
+the workflow root (`raw_data/groups/...`, `results/...`): the crate describes the run's files in
+place and copies none, so its data entities resolve against the repository, two levels above
+results/crate/ (`..` in ids would not do: RO-Crate canonicalises them inside the crate, and
+`report/x.rst` and `results/report/x.rst` would become one). PROV-JSON (results/lineage/prov.json)
+stays beside it.
 """
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
+from urllib.parse import unquote
 
 from ..lineage.records import AFTER_RUN, CONFIG_DIR, RECORDS_DIR, load_records, record_path, sha256
 
@@ -48,7 +52,7 @@ def build(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD)
     from rocrate.rocrate import ROCrate
 
     root = Path(root)
-    rel = lambda p: os.path.relpath(root / p, root / out).replace(os.sep, "/")  # noqa: E731
+    rel = str  # ids are paths relative to the workflow root (see above)
     records = {r["_record"]: r for r in load_records(root).values()}
     crate = ROCrate()
     crate.name = "embodied-snap: a recorded run"
@@ -131,8 +135,8 @@ def write(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD)
 
 
 def _path(out: str, eid: str) -> str:
-    """A File's id, relative to the crate's folder, as a path relative to the workflow root."""
-    return os.path.normpath(os.path.join(out, eid)).replace(os.sep, "/")
+    """A File's id as a path relative to the workflow root (what the ids are)."""
+    return os.path.normpath(unquote(eid)).replace(os.sep, "/")  # rocrate quotes '=' and the like
 
 
 def upstream(root=".", out: str = DEFAULT_OUT, path: str = "") -> set[str]:
