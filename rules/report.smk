@@ -52,7 +52,7 @@ rule fig_system:
     """Fig. 1: the arm, the primitive on a recorded strike, the shared policy's commands."""
     input:
         # the simulated rig's model rendered; with recordings of a real rig, panel (a) draws the strike
-        render=["results/twin/render.png"] if TWIN else [],
+        render="results/twin/render.png" if TWIN else [],
         raw=raw_of(group_id=FIG1_GROUP),
         validated=validated(group_id=FIG1_GROUP),
         summary="results/policy/summary.json",

@@ -29,6 +29,10 @@ def wf(smoke_run):
 
 def test_fig1_and_the_tables_are_built(wf):
     assert {"fig1_system.png", "fig1_system.pdf"} <= {p.name for p in (wf / "results/figures").iterdir()}
+    # panel (a) is the simulated rig's render, (b) one recorded strike
+    reads = json.loads((wf / "results/provenance/fig_system/_.json").read_text())["reads"]
+    assert "results/twin/render.png" in reads
+    assert len({r.split("/")[2] for r in reads if r.startswith("raw_data/groups/")}) == 1
     rows = list(csv.DictReader(open(wf / "results/tables/table1_evidence.csv")))
     by = {r["evidence"]: r for r in rows}
     index = pd.read_csv(wf / "raw_data/index.csv")

@@ -15,7 +15,7 @@ with tracked(snakemake):
     mocap, servo, meta = group(snakemake.params.raw, snakemake.params.group)
     selected = json.load(open(i.summary))["selected"]
     ev = read_parquet(next(f for f in i.evals if Path(f).stem == f"shared_seed{selected['seed']}"))
-    # one file, or none with a real rig (a one-item named input is the path itself)
-    render = i.render if isinstance(i.render, str) else None
+    # the render's path, or an empty list with a real rig
+    render = str(i.render) if isinstance(i.render, str) else None
     shown = plot_system(render, mocap, servo, meta, selected, ev, snakemake.output.pdf, snakemake.output.png)
     print(json.dumps(shown, indent=1), file=sys.stderr)
