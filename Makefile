@@ -21,7 +21,8 @@ $(VENV)/.installed: pyproject.toml requirements.lock
 install: $(VENV)/.installed
 
 paper: install
-	$(VENV)/bin/snakemake --cores $(CORES) results/figures --config budget=$(BUDGET)
+	$(VENV)/bin/snakemake --cores $(CORES) all --config budget=$(BUDGET)
+	$(VENV)/bin/snakemake --report results/report.html --config budget=$(BUDGET)
 
 test: install
 	$(VENV)/bin/pytest -q
