@@ -13,12 +13,16 @@ $(VENV)/.installed: pyproject.toml requirements.lock
 	$(PY) -m pip install -q torch==2.13.0
 	$(PY) -m pip install -q -r requirements.lock
 	$(PY) -m pip install -q --no-deps -e .
+	# the report test opens the HTML report in the system's Chromium (docs/report.md): Debian's package
+	command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && \
+		apt-get update -q && apt-get install -y -q -o DPkg::Lock::Timeout=300 chromium; } || echo "no chromium: the report test skips"
 	touch $@
 
 install: $(VENV)/.installed
 
 paper: install
-	$(VENV)/bin/snakemake --cores $(CORES) results/figures --config budget=$(BUDGET)
+	$(VENV)/bin/snakemake --cores $(CORES) all --config budget=$(BUDGET)
+	$(VENV)/bin/snakemake --report results/report.html --config budget=$(BUDGET)
 
 test: install
 	$(VENV)/bin/pytest -q

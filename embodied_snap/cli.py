@@ -213,6 +213,50 @@ def cmd_deploy(a) -> int:
     return 0
 
 
+def cmd_claims(a) -> int:
+    """The claims ledger, filtered by paper section and status."""
+    from .paper.ledger import count_line, read
+
+    path = Path(a.root) / a.ledger
+    if not path.exists():
+        print(f"error: {a.ledger}: no claims ledger (run: snakemake results/tables/claims.csv)", file=sys.stderr)
+        return 1
+    rows = [r for r in read(path) if (not a.section or r["section"] in a.section)
+            and (not a.status or r["status"] in a.status)]
+    print(count_line(rows))
+    w = max([len(r["claim_id"]) for r in rows] + [8])
+    for r in rows:
+        doc = f"  -> {r['explained_in']}" if r["explained_in"] else ""
+        print(f"{r['section']:<8} {r['claim_id']:<{w}} paper {r['paper'] or '-':<16} ours {r['ours'] or '-':<20} "
+              f"{r['unit']:<10} {r['status']}{doc}")
+    return 0
+
+
+def cmd_crate(a) -> int:
+    from .paper.crate import verify, write
+
+    if a.verify:
+        bad = verify(a.root, a.out.rstrip("/"))
+        for b in bad:
+            print(f"error: {b}")
+        print("crate matches results/" if not bad else f"{len(bad)} result file(s) differ from the crate")
+        return 1 if bad else 0
+    print(write(a.root, a.out.rstrip("/")))
+    return 0
+
+
+def cmd_report_check(a) -> int:
+    from .paper.browser import check_report
+
+    res = check_report(a.html, a.screenshot)
+    for path, what in res["results"].items():
+        print(f"{path}: {what}")
+    for prob in res["problems"]:
+        print(f"error: {prob}")
+    print("report ok" if not res["problems"] else f"{len(res['problems'])} problem(s)")
+    return 1 if res["problems"] else 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="esnap", description=__doc__)
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -278,6 +322,25 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--dry-run", action="store_true", help="print the commands and goal schedule, open no port")
     d.add_argument("--yes", action="store_true", help="do not ask before moving the arm")
     d.set_defaults(fn=cmd_deploy)
+
+    cl = sub.add_parser("claims", help="the claims ledger: every paper number beside ours, by section and status")
+    cl.add_argument("--section", action="append", help="only this paper section, e.g. III-B (repeatable)")
+    cl.add_argument("--status", action="append", choices=["agrees", "differs", "not measured", "no paper value"],
+                    help="only claims with this status (repeatable)")
+    cl.add_argument("--root", default=".")
+    cl.add_argument("--ledger", default="results/tables/claims.csv")
+    cl.set_defaults(fn=cmd_claims)
+
+    cr = sub.add_parser("crate", help="write the run as a Workflow Run RO-Crate (or --verify it against results/)")
+    cr.add_argument("--out", default="results/crate/")
+    cr.add_argument("--root", default=".")
+    cr.add_argument("--verify", action="store_true", help="check that every result file is in it with its sha256")
+    cr.set_defaults(fn=cmd_crate)
+
+    rc = sub.add_parser("report-check", help="open the HTML report in headless Chromium: every figure and table shown")
+    rc.add_argument("html", nargs="?", default="results/report.html")
+    rc.add_argument("--screenshot", default="results/report.png")
+    rc.set_defaults(fn=cmd_report_check)
 
     a = p.parse_args(argv)
     return a.fn(a)

@@ -65,3 +65,11 @@ def claim_rows(section: str, ours: dict, path: str | Path = REFERENCE) -> list[d
              ours=fmt(ours[cid]), unit=r["unit"])
         for cid, r in paper_values(path)[section].items()
     ]
+
+
+def tolerance(stage: str, claim_id: str, path: str | Path = REFERENCE) -> float:
+    """The relative tolerance the claims ledger allows a point value of `stage`: the claim's own
+    `tolerance`, else `agreement.relative_tolerance`."""
+    ref = paper_values(path)
+    own = (ref.get(stage) or {}).get(claim_id, {}).get("tolerance")
+    return float(own if own is not None else ref["agreement"]["relative_tolerance"])

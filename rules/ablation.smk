@@ -172,8 +172,8 @@ rule fig_ablation:
         pdf="results/figs/fig6_ablation.pdf",
         png=report(
             "results/figs/fig6_ablation.png",
-            caption="../report/fig6_ablation.rst",
-            category="Policy",
+            caption=caption("fig6_ablation"),
+            category=category("fig6_ablation"),
         ),
     log:
         "logs/fig_ablation.log",

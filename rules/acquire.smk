@@ -103,3 +103,17 @@ rule twin_validation:
 
 
 TWIN_REPORTS = ["results/twin/validation.json"]
+
+
+rule twin_render:
+    """Fig. 1a: the arm rendered offscreen from the simulated rig's MuJoCo model."""
+    input:
+        code=imports("twin_render"),
+    output:
+        "results/twin/render.png",
+    log:
+        "logs/twin_render.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/twin_render.py"

@@ -214,8 +214,8 @@ rule fig_limits:
         pdf="results/figs/fig2_limits.pdf",
         png=report(
             "results/figs/fig2_limits.png",
-            caption="../report/fig2_limits.rst",
-            category="Characterisation",
+            caption=caption("fig2_limits"),
+            category=category("fig2_limits"),
         ),
     log:
         "logs/fig_limits.log",
@@ -238,8 +238,8 @@ rule fig_snap:
         pdf="results/figs/fig3_snap.pdf",
         png=report(
             "results/figs/fig3_snap.png",
-            caption="../report/fig3_snap.rst",
-            category="Characterisation",
+            caption=caption("fig3_snap"),
+            category=category("fig3_snap"),
         ),
     log:
         "logs/fig_snap.log",

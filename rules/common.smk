@@ -1,4 +1,6 @@
 # Shared by every stage: the group plan, shards, and where a group's files live.
+import glob
+import re
 import sys
 
 # The package beside the Snakefile, installed or not.
@@ -11,6 +13,7 @@ from embodied_snap import protocol
 from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
 from embodied_snap.lineage.imports import code_inputs
+from embodied_snap.paper.sections import category as category_of
 from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import RecordingError, group_paths
 from embodied_snap.validate import Limits
@@ -168,3 +171,35 @@ def rob_targets(name):
 
 def rob_evals(variant):
     return [f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
+
+
+# The HTML report (docs/report.md): the ledger job writes each item's caption here (its static
+# caption from report/, the ledger's numbers for its paper sections, its lineage).
+CAPTIONS = "results/report"
+
+
+def caption(name):
+    return f"../{CAPTIONS}/{name}.rst"
+
+
+def category(name):
+    """A figure's report category: the paper section its static caption names."""
+    return category_of(Path(workflow.basedir, "report", f"{name}.rst").read_text())
+
+
+def claims_tables(wildcards=None):
+    """Every stage's claims table, from the rules that write one (results/<stage>/claims.csv):
+    a new stage's table joins the ledger and the separation proof without an edit here.
+    """
+    return sorted(
+        {
+            str(f)
+            for r in workflow.rules
+            for f in r.output
+            if re.fullmatch(r"results/(?!tables/)[a-z_]+/claims\.csv", str(f))
+        }
+    )
+
+
+# Fig. 1b shows the first attachment trial: a recorded strike at a target, every release labelled.
+FIG1_GROUP = min(select(evidence_set="attachment").group_id)

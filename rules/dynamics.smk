@@ -184,8 +184,8 @@ rule fig_gates:
         pdf="results/figs/fig4_gates.pdf",
         png=report(
             "results/figs/fig4_gates.png",
-            caption="../report/fig4_gates.rst",
-            category="Dynamics model",
+            caption=caption("fig4_gates"),
+            category=category("fig4_gates"),
         ),
     log:
         "logs/fig_gates.log",

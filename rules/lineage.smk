@@ -15,10 +15,7 @@ rule check_separation:
         # every simulated target set (the separation policy's list): proved pairwise disjoint
         targets=list(SEPARATION.TARGET_FILES),
         # the claims tables come after every model, policy and target set: all records exist
-        claims=expand(
-            "results/{stage}/claims.csv",
-            stage=("characterize", "dynamics", "policy", "ablation", "deployment"),
-        ),
+        claims=claims_tables,
         # the deployment recordings and the manifest they ran: nothing upstream changed after export
         deployment_index=f"{DEPLOY_RAW}/index.csv",
         deployment_groups=f"{DEPLOY_RAW}/groups",
@@ -55,3 +52,18 @@ rule prov_export:
         raw=lambda wc, input: os.path.dirname(input.index),
     script:
         "../workflow_scripts/prov_export.py"
+
+
+rule crate:
+    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product."""
+    input:
+        lambda wc: PRODUCTS,
+        code=imports("crate"),
+    output:
+        "results/crate/ro-crate-metadata.json",
+    log:
+        "logs/crate.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/crate.py"

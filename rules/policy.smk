@@ -192,8 +192,8 @@ rule fig_benchmark:
         pdf="results/figs/fig5_benchmark.pdf",
         png=report(
             "results/figs/fig5_benchmark.png",
-            caption="../report/fig5_benchmark.rst",
-            category="Policy",
+            caption=caption("fig5_benchmark"),
+            category=category("fig5_benchmark"),
         ),
     log:
         "logs/fig_benchmark.log",

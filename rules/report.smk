@@ -3,6 +3,7 @@
 
 FIGURES = [
     "fig0_data_overview",
+    "fig1_system",
     "fig2_limits",
     "fig3_snap",
     "fig4_gates",
@@ -21,8 +22,8 @@ rule fig_data_overview:
         pdf="results/figs/fig0_data_overview.pdf",
         png=report(
             "results/figs/fig0_data_overview.png",
-            caption="../report/fig0_data_overview.rst",
-            category="Data",
+            caption=caption("fig0_data_overview"),
+            category=category("fig0_data_overview"),
         ),
     log:
         "logs/fig_data_overview.log",
@@ -46,3 +47,90 @@ rule figures:
         "../envs/esnap.yaml"
     script:
         "../workflow_scripts/figures.py"
+
+
+rule fig_system:
+    """Fig. 1: the arm, the primitive on a recorded strike, the shared policy's commands."""
+    input:
+        # the simulated rig's model rendered; with recordings of a real rig, panel (a) draws the strike
+        render="results/twin/render.png" if TWIN else [],
+        raw=raw_of(group_id=FIG1_GROUP),
+        validated=validated(group_id=FIG1_GROUP),
+        summary="results/policy/summary.json",
+        evals=[e for e in POLICY_EVALS if Path(e).stem.startswith("shared_seed")],
+        code=imports("fig_system"),
+    output:
+        pdf="results/figs/fig1_system.pdf",
+        png=report(
+            "results/figs/fig1_system.png",
+            caption=caption("fig1_system"),
+            category=category("fig1_system"),
+        ),
+    log:
+        "logs/fig_system.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        raw=RAW,
+        group=FIG1_GROUP,
+    script:
+        "../workflow_scripts/fig_system.py"
+
+
+rule table_evidence:
+    """Table I from the lineage: evidence sets and target sets, n, use and the proved separation."""
+    input:
+        separation="results/lineage/separation.json",
+        index=raw_index(),
+        split="results/splits/split.csv",
+        static="report/table1_evidence.rst",
+        code=imports("table_evidence"),
+    output:
+        csv="results/tables/table1_evidence.csv",
+        html=report(
+            "results/tables/table1_evidence.html",
+            caption=caption("table1_evidence"),
+            category=category("table1_evidence"),
+        ),
+        md="results/tables/table1_evidence.md",
+        tex="results/tables/table1_evidence.tex",
+        caption=f"{CAPTIONS}/table1_evidence.rst",
+    log:
+        "logs/table_evidence.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        simulated=TWIN,
+    script:
+        "../workflow_scripts/table_evidence.py"
+
+
+rule table_claims:
+    """The claims ledger: every stage's claims, judged against the paper; the report's captions."""
+    input:
+        claims=claims_tables,
+        figs=expand("results/figs/{fig}.png", fig=FIGURES),
+        separation="results/lineage/separation.json",
+        reference="reference/paper_values.yaml",
+        captions=expand("report/{fig}.rst", fig=FIGURES),
+        docs=sorted(glob.glob("docs/*.md")),
+        index=raw_index(),
+        split="results/splits/split.csv",
+        manifest="results/raw/manifest.json",
+        code=imports("table_claims"),
+    output:
+        csv="results/tables/claims.csv",
+        html=report(
+            "results/tables/claims.html",
+            caption=caption("claims"),
+            category="Claims ledger",
+        ),
+        md="results/tables/claims.md",
+        captions=expand(f"{CAPTIONS}/{{fig}}.rst", fig=FIGURES),
+        caption=f"{CAPTIONS}/claims.rst",
+    log:
+        "logs/table_claims.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/table_claims.py"

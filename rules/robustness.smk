@@ -222,7 +222,7 @@ rule table_robustness_claims:
         reference="reference/paper_values.yaml",
         code=imports("robustness_claims"),
     output:
-        f"{ROB}/claims.csv",
+        f"{ROB}/variants.csv",
     log:
         "logs/robustness/claims.log",
     conda:

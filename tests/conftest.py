@@ -1,6 +1,8 @@
 """Fixtures shared by several test modules. Helper modules (fakerig, lineage_tree) write files;
 what is built in memory lives here."""
 
+import shutil
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -31,3 +33,20 @@ def _synthetic_frames(n_groups=6, n=140, seed=0):
 def synthetic_frames():
     """A function (n_groups, n, seed) -> 50 Hz frames of a learnable toy arm."""
     return _synthetic_frames
+
+
+@pytest.fixture(scope="session")
+def smoke_run(tmp_path_factory):
+    """One smoke-budget run of the whole DAG (`snakemake all robustness`) in a copy of the repository, shared
+    by every test module that needs a finished run (test_workflow, test_report): a second run would
+    cost minutes. Modules that change files in it restore them."""
+    from test_workflow import COPY, REPO, snakemake
+
+    d = tmp_path_factory.mktemp("wf")
+    for name in COPY:
+        src = REPO / name
+        (shutil.copytree if src.is_dir() else shutil.copy2)(
+            src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
+        )
+    snakemake(d, "all", "robustness")
+    return d

@@ -7,8 +7,10 @@ import ast
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-# The scripts of rules/acquire.smk, included only with raw_data.source: twin.
-TWIN_SCRIPTS = {"twin_acquire", "twin_index", "twin_truth", "twin_phenomena", "twin_validation", "twin_deployment"}
+# The scripts of rules/acquire.smk, included only with raw_data.source: twin (Fig. 1a's render of the
+# simulated rig's model among them).
+TWIN_SCRIPTS = {"twin_acquire", "twin_index", "twin_truth", "twin_phenomena", "twin_validation", "twin_deployment",
+                "twin_render"}
 
 
 def imported_modules(path: Path) -> set[str]:

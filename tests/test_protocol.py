@@ -75,7 +75,8 @@ def test_workflow_stops_at_start_up_on_a_25_hz_grid(tmp_path):
 
 
 def test_paper_values_only_feed_the_paper_column():
-    """reference/paper_values.yaml is an input of the claims tables and the twin's report alone, and
+    """reference/paper_values.yaml is an input of the claims tables, the claims ledger (which judges
+    ours against the paper column) and the twin's report alone, and
     only embodied_snap/reference.py reads it: no result is computed from a paper value."""
     readers = set()
     for smk in (REPO / "rules").glob("*.smk"):
@@ -84,7 +85,8 @@ def test_paper_values_only_feed_the_paper_column():
             if m and "reference/paper_values.yaml" in block:
                 readers.add(m.group(1))
     assert readers == {"table_characterize_claims", "table_dynamics_claims", "table_policy_claims",
-                       "table_ablation_claims", "table_robustness_claims", "twin_validation", "deploy_table"}
+                       "table_ablation_claims", "table_robustness_claims", "twin_validation", "deploy_table",
+                       "table_claims"}
     code = [p for d in ("embodied_snap", "workflow_scripts") for p in (REPO / d).rglob("*.py")]
     reads = re.compile(r"\bpaper_values\s*\(|import [^\n]*\bpaper_values\b")  # a call or an import
     users = {p.relative_to(REPO).as_posix() for p in code if reads.search(p.read_text())}

@@ -10,7 +10,6 @@ import hashlib
 import json
 import os
 import re
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -24,7 +23,7 @@ from importprobe import loaded_by_scripts
 
 REPO = Path(__file__).resolve().parent.parent
 COPY = ["Snakefile", "config.yaml", "rules", "workflow_scripts", "schemas", "envs", "profiles",
-        "reference", "report", "embodied_snap"]
+        "reference", "report", "embodied_snap", "docs"]
 SMOKE = ["--config", "budget=smoke"]
 BIN = Path(sys.executable).parent
 
@@ -64,15 +63,9 @@ def digest_tree(root: Path) -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def wf(tmp_path_factory):
-    d = tmp_path_factory.mktemp("wf")
-    for name in COPY:
-        src = REPO / name
-        (shutil.copytree if src.is_dir() else shutil.copy2)(
-            src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
-        )
-    snakemake(d, "all", "robustness")
-    return d
+def wf(smoke_run):
+    """The session's one smoke run (conftest.smoke_run), shared with tests/test_report.py."""
+    return smoke_run
 
 
 def test_fresh_run_builds_figures_and_lineage(wf):
@@ -103,7 +96,7 @@ def test_robustness_variants_extend_the_benchmark(wf):
     run = json.loads((wf / "results/policy/runs/shared_seed0.json").read_text())
     longer = json.loads((wf / "results/robustness/double/runs/shared_seed0.json").read_text())
     assert longer["curve"][:g] == run["curve"] and len(longer["curve"]) == 2 * g
-    claims = pd.read_csv(wf / "results/robustness/claims.csv")
+    claims = pd.read_csv(wf / "results/robustness/variants.csv")
     assert set(claims.variant) == set(s) and (claims.claim_id.str.endswith("ranking_reward_holds")).sum() == 4
 
 
@@ -135,6 +128,7 @@ def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
             ("validate_shard", "shard=attachment-00"),
             ("characterize_attachment", ""),
             ("fig_limits", ""),
+            ("fig_system", ""),  # Fig. 1b's strike is att_0001, of the same shard's validation record
             ("raw_manifest", ""),
             ("fig_data_overview", ""),
             ("table_characterize_claims", ""),

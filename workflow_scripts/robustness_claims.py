@@ -1,4 +1,4 @@
-"""The architecture result on the benchmark and each robustness variant: results/robustness/claims.csv."""
+"""The architecture result on the benchmark and each robustness variant: results/robustness/variants.csv."""
 
 import json
 import sys

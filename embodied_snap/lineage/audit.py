@@ -57,8 +57,10 @@ class _Disk:
         return None if self.hash[p] == e["sha256"] else "sha256 changed"
 
 
-def audit(result: str, root=".", config: dict | None = None) -> dict:
-    """`config`: the run's config (default: the one the last run recorded), for the raw directory."""
+def audit(result: str, root=".", config: dict | None = None, check_disk: bool = True) -> dict:
+    """`config`: the run's config (default: the one the last run recorded), for the raw directory.
+    `check_disk=False`: lineage only, no staleness (a job inside the run, which must not read
+    files it did not declare)."""
     t0 = time.perf_counter()
     root = Path(root)
     records = load_records(root)
@@ -92,7 +94,7 @@ def audit(result: str, root=".", config: dict | None = None) -> dict:
                          host=rec.get("host"), gate=gate))
         # A gate vouches only for its outputs; its inputs are not RESULT's lineage.
         entries = rec.get("outputs", []) + ([] if gate else rec.get("inputs", []) + rec.get("code", []))
-        for e in entries:
+        for e in entries if check_disk else ():
             why = disk.check(e)
             if why:
                 stale.append(dict(path=e["path"], why=why, record=rec["_record"]))

@@ -26,9 +26,10 @@ from ..io import read_parquet
 from . import policy as P
 from .dag import build_dag
 from .groups import SPLIT_CSV, deployment_dir, group_of, load_groups, twin_truth
-from .records import DEFAULT_RAW, RECORDS_DIR, last_config, load_records, raw_dir_of
+from .records import AFTER_RUN, DEFAULT_RAW, RECORDS_DIR, last_config, load_records, raw_dir_of
 
 RULE = "docs/design.md 3"
+TARGETS_RULE = "training, selection, evaluation, offset and release targets are disjoint (separate seeds)"
 
 
 def shard_source(shard: str) -> str:
@@ -137,6 +138,61 @@ def dag_violations(nodes: list[dict], groups: dict | None = None, raw: str = DEF
                      dag_truth_readers=n_readers)
 
 
+def dag_uses(nodes: list[dict], groups: dict | None = None, raw: str = DEFAULT_RAW) -> dict[str, list[str]]:
+    """Source -> the rules that consume its data on the DAG (Table I's "use"): the jobs that read
+    its recordings, its resampled shards or the file itself, other than bookkeeping and gates."""
+    stop = P.BOOKKEEPING | P.GATES | P.TARGETS
+    through = P.SOURCE_RULES - P.BOOKKEEPING  # where data flows on unchanged (acquisition, resampling)
+    starts: dict[str, set[int]] = {}
+    for i, n in enumerate(nodes):
+        if n["rule"] in through and "shard" in n["wildcards"]:
+            starts.setdefault(shard_source(n["wildcards"]["shard"]), set()).add(i)
+        if n["rule"] in stop or n["rule"] in through:
+            continue
+        for f in n["input"]:
+            g = group_of(f, raw)
+            src = (groups or {}).get(g[0], {}).get("role") if g else (
+                file_source(f, raw) or (f if f in P.TARGET_FILES else None))
+            if src:
+                starts.setdefault(src, set()).add(i)
+    out = {}
+    for src, ids in starts.items():
+        used, todo, seen = set(), deque(ids), set(ids)
+        while todo:
+            i = todo.popleft()
+            rule = nodes[i]["rule"]
+            if rule not in through:
+                if rule not in stop:
+                    used.add(rule)
+                continue  # a consumer: what comes after it uses its result, not the source
+            for k in nodes[i]["down"]:
+                if k not in seen:
+                    seen.add(k)
+                    todo.append(k)
+        out[src] = sorted(used)
+    return dict(sorted(out.items()))
+
+
+def _sentences() -> dict[str, str]:
+    """Every source's rule: the policy's sentence, the disjointness of the target sets."""
+    out = {k: s.rule for k, s in P.POLICY.items()}
+    return {**out, **{f: TARGETS_RULE for f in P.TARGET_FILES if f not in P.POLICY}}
+
+
+def by_source(violations: list[str]) -> tuple[dict[str, list[str]], list[str]]:
+    """Each violation under the sources whose policy sentence (or target file) it names; the rest
+    (an unnamed rule, an unreadable or missing record, a DAG that did not build) concern them all."""
+    per: dict[str, list[str]] = {}
+    rest = []
+    for v in violations:
+        hit = [k for k in _sentences() if _sentences()[k] in v or (k in P.TARGET_FILES and Path(k).name in v)]
+        for k in hit:
+            per.setdefault(k, []).append(v)
+        if not hit:
+            rest.append(v)
+    return per, rest
+
+
 # --- on the records --------------------------------------------------------------------------------
 
 
@@ -220,7 +276,7 @@ def unrecorded(root: Path) -> list[str]:
     for f in sorted((root / "results").rglob("*")):
         p = f.relative_to(root).as_posix()
         # Snakemake's marker in a directory output is its own, not a result
-        own = p.startswith(RECORDS_DIR + "/") or f.name == ".snakemake_timestamp"
+        own = p.startswith(RECORDS_DIR + "/") or f.name == ".snakemake_timestamp" or p in AFTER_RUN
         if f.is_file() and not own and p not in claimed:
             out.append(
                 f"separation (records): {p} has no provenance record; {RULE}: every result has "
@@ -275,7 +331,7 @@ def _window_violations(root: Path, groups: dict) -> tuple[list[str], int]:
     return out, n
 
 
-def _target_violations(root: Path) -> tuple[list[str], int]:
+def _target_violations(root: Path) -> tuple[list[str], dict[str, int]]:
     sets = {}
     for rel in P.TARGET_FILES:
         p = root / rel
@@ -294,10 +350,9 @@ def _target_violations(root: Path) -> tuple[list[str], int]:
                 out.append(
                     f"separation (targets): {b} shares {len(common)} target(s) with "
                     f"{Path(a).name} (first: {sorted(common)[0]}); "
-                    f"{RULE}: training, selection, evaluation, offset and release targets are disjoint "
-                    "(separate seeds)"
+                    f"{RULE}: {TARGETS_RULE}"
                 )
-    return out, len(sets)
+    return out, {k: len(v) for k, v in sorted(sets.items())}
 
 
 MANIFEST = "results/deployment/manifest.json"
@@ -330,9 +385,10 @@ def _records_check(root: Path, raw: str, complete: bool) -> tuple[list[str], dic
         out += unrecorded(root)
     out += _split_violations(root, groups)
     w, nw = _window_violations(root, groups)
-    t, nt = _target_violations(root)
+    t, sizes = _target_violations(root)
     d, nd = deployment_violations(root, raw)
-    counts.update(groups=len(groups), window_files=nw, target_sets=nt, deployment_trials=nd)
+    counts.update(groups=len(groups), window_files=nw, target_sets=len(sizes), target_sizes=sizes,
+                  deployment_trials=nd)
     return out + w + t + d, counts
 
 
@@ -355,11 +411,13 @@ def check(
     root = Path(root)
     cfg = config_overrides if config_overrides is not None else (last_config(root) or {})
     raw = raw_dir_of(cfg)
-    violations, checked = [], {}
+    violations, checked, uses = [], {}, {}
     if static:
         try:
             wd = dag_kwargs.pop("workdir", root)
-            v, c = dag_violations(build_dag(wd, config_overrides=cfg, **dag_kwargs), load_groups(wd, raw), raw)
+            nodes, groups = build_dag(wd, config_overrides=cfg, **dag_kwargs), load_groups(wd, raw)
+            v, c = dag_violations(nodes, groups, raw)
+            uses = dag_uses(nodes, groups, raw)
         except Exception as e:  # noqa: BLE001 -- any failure to build the DAG means no proof
             v, c = [f"separation (DAG): could not build the Snakemake DAG: {type(e).__name__}: {e}"], {}
         violations += v
@@ -368,4 +426,10 @@ def check(
         v, c = _records_check(root, raw, complete)
         violations += v
         checked.update(c)
-    return dict(ok=not violations, violations=violations, checked=checked, raw_dir=raw)
+    per, rest = by_source(violations)
+    # What was proved for each source: its policy sentence, on which checks, and its violations.
+    proofs = {k: dict(rule=rule, uses=uses.get(k, []), violations=per.get(k, []),
+                      ok=not per.get(k) and not rest, dag=static, records=records)
+              for k, rule in _sentences().items()}
+    return dict(ok=not violations, violations=violations, checked=checked, raw_dir=raw, sources=proofs,
+                unattributed=rest)

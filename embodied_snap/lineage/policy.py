@@ -19,10 +19,13 @@ from dataclasses import dataclass
 BOOKKEEPING = frozenset({
     "validate_shard", "validate_index", "validate_sealed", "raw_manifest", "twin_index", "split",
     "check_separation", "prov_export", "fig_data_overview",
+    # the paper's build products that read only metadata: Table I (the index, the split and the
+    # separation proof), the arm's render (the simulator's model, no recording), the RO-Crate
+    "table_evidence", "twin_render", "crate",
 })
 # Jobs whose outputs are statements about the whole run: reports list them as inputs only to run
 # after them, so `esnap audit` lists them in a chain but does not descend into them.
-GATES = frozenset({"check_separation", "prov_export"})
+GATES = frozenset({"check_separation", "prov_export", "crate"})
 # Rules that only name other targets and write nothing.
 TARGETS = frozenset({"all", "robustness"})
 # Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
@@ -31,13 +34,16 @@ SOURCE_RULES = frozenset({"twin_acquire", "validate_shard", "resample_shard"})
 FILE_WRITERS = frozenset({"twin_truth", "policy_targets", "ablation_targets", "robustness_targets",
                           "twin_deployment"})
 
-# Reports of each stage: tables and figures, and the folder that gathers the figures.
-CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_validation", "figures")
-DYN_REPORTS = ("table_dynamics_claims", "fig_gates", "figures")
+# Reports of each stage: tables and figures, the folder that gathers the figures, and the claims
+# ledger that gathers every stage's claims (with the report captions it writes).
+LEDGER = "table_claims"
+CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_validation", "figures", LEDGER)
+DYN_REPORTS = ("table_dynamics_claims", "fig_gates", "figures", LEDGER)
 POLICY_RUNS = ("policy_search", "policy_evaluate", "policy_fixed", "policy_summary")
-POLICY_REPORTS = ("fig_benchmark", "table_policy_claims", "figures")
+# Fig. 1 shows the selected policy's commands for one evaluation target.
+POLICY_REPORTS = ("fig_benchmark", "table_policy_claims", "figures", "fig_system", LEDGER)
 # The release-rule ablation (paper V-A, V-B, Fig. 6): everything after the offset fit, and the fit.
-ABLATION_EVAL = ("ablation_rules", "ablation_summary", "fig_ablation", "table_ablation_claims", "figures")
+ABLATION_EVAL = ("ablation_rules", "ablation_summary", "fig_ablation", "table_ablation_claims", "figures", LEDGER)
 ABLATION_RUNS = ("ablation_offsets", "ablation_bend", "ablation_perturb", *ABLATION_EVAL)
 # The architecture benchmark's robustness variants (rules/robustness.smk): runs on their own targets
 # or continued from the benchmark's, evaluated, summarised.
@@ -47,7 +53,7 @@ ROBUSTNESS_REPORTS = ("robustness_summary", "fig_robustness", "table_robustness_
 ROBUSTNESS = (*ROBUSTNESS_RUNS, *ROBUSTNESS_REPORTS)
 # Deployment (paper VI): the manifest exported from the selected policy, the trials that run it,
 # and its reports. Everything that fed the policy reaches all of these through the manifest.
-DEPLOY_REPORTS = ("deploy_table", "fig_deployment", "figures")
+DEPLOY_REPORTS = ("deploy_table", "fig_deployment", "figures", LEDGER)
 DEPLOY_RULES = ("deploy_manifest", "twin_deployment", *DEPLOY_REPORTS)
 # Everything that uses the GRU models (trained on train, selected on validation windows).
 MODEL_USERS = (
@@ -73,8 +79,9 @@ POLICY: dict[str, Source] = {
         "servo_calibration may feed tendon kinematics, the servo rate fit and the rate ceilings (the "
         "manifest's calibration), never the dynamics model or policies"),
     "attachment": Source(
-        ("characterize_attachment", "twin_phenomena", *CHAR_REPORTS),
-        "attachment may feed the speed/angle attachment model, never the dynamics model or policies"),
+        ("characterize_attachment", "twin_phenomena", "fig_system", *CHAR_REPORTS),
+        "attachment may feed the speed/angle attachment model (and Fig. 1's example strike), never the "
+        "dynamics model or policies"),
     "release_mode": Source(
         ("characterize_release", "twin_phenomena", *CHAR_REPORTS),
         "release_mode may feed Fig. 2b, never the dynamics model"),
@@ -101,8 +108,9 @@ POLICY: dict[str, Source] = {
         "validation groups feed model selection and the validation errors; never the training "
         "windows, the hold bank or the snap classifier", held_out=True),
     "sealed": Source(
-        ("windows(role=sealed)", "dynamics_sealed_eval", "table_dynamics_claims"),
-        "sealed groups may feed only the sealed windows, the single sealed evaluation and its table",
+        ("windows(role=sealed)", "dynamics_sealed_eval", "table_dynamics_claims", LEDGER),
+        "sealed groups may feed only the sealed windows, the single sealed evaluation and its table "
+        "(and the claims ledger that gathers it)",
         held_out=True),
     # Files. The twin's truth: `raw` is replaced by the configured raw directory.
     "twin_truth": Source(
@@ -115,7 +123,7 @@ POLICY: dict[str, Source] = {
     "results/policy/targets_evaluation.parquet": Source(
         ("policy_evaluate", "policy_fixed", "policy_summary", *POLICY_REPORTS, "ablation_bend", "ablation_perturb",
          "ablation_summary", "fig_ablation", "table_ablation_claims", "robustness_evaluate",
-         *ROBUSTNESS_REPORTS),
+         *ROBUSTNESS_REPORTS, LEDGER),
         "the evaluation targets are read only by the final evaluation, after selection (and the ablation's "
         "analyses of the selected policy on them, and the budget variants' evaluations)",
         held_out=True, readers=("policy_evaluate", "policy_fixed", "ablation_bend", "ablation_perturb",

@@ -62,7 +62,7 @@ def summarize_variants(benchmark_runs, runs_of: dict, evals_of: dict, fixed_of: 
 
 
 def claim_rows(summary: dict, paper: dict) -> list[dict]:
-    """Rows of results/robustness/claims.csv: each variant's architecture result. paper: the policy
+    """Rows of results/robustness/variants.csv: each variant's architecture result. paper: the policy
     section's paper column (reference.paper_column("policy")); the variants are not in the paper, so the reference
     column is the paper's benchmark (its rankings derived from its values, where it gives them)."""
     def ref(key):

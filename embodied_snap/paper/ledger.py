@@ -1,0 +1,195 @@
+"""One claims ledger: every stage's claims.csv side by side, each paper number judged against ours.
+
+A stage's table is `results/<stage>/claims.csv` (claim_id, section, quantity, paper, ours, unit).
+The ledger adds `agrees` (ours inside the paper's interval, or within the relative tolerance of
+reference/paper_values.yaml where the paper gives a point value), `artifact` (the files the stage's
+claims job read its numbers from, from its provenance record), `fed_by` (evidence sets and group
+counts behind that artifact, from `esnap audit`) and, for a difference, the doc that explains it.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+from pathlib import Path
+
+from ..lineage.audit import audit
+from ..lineage.records import load_records
+from ..reference import tolerance
+from . import html
+from .sections import section_key
+
+COLUMNS = ("claim_id", "stage", "section", "quantity", "paper", "ours", "unit", "tolerance", "status",
+           "agrees", "artifact", "fed_by", "explained_in")
+# status values
+AGREES, DIFFERS, NO_PAPER, NOT_MEASURED = "agrees", "differs", "no paper value", "not measured"
+
+
+def parse(v: str):
+    """A claims cell: None (empty), a float, a list of floats ('[a, b]' or '[a, b, c]'), or an
+    inequality ('<1e-10' -> ('<', 1e-10))."""
+    v = (v or "").strip()
+    if not v:
+        return None
+    m = re.fullmatch(r"([<>]=?)\s*(\S+)", v)
+    if m:
+        return (m.group(1), float(m.group(2)))
+    if v.startswith("["):
+        return [float(x) for x in v.strip("[]").split(",") if x.strip()]
+    return float(v)
+
+
+def _near(o: float, p: float, tol: float) -> bool:
+    return abs(o - p) <= tol * abs(p) if p else o == 0
+
+
+def agrees(paper, ours, tol: float) -> bool | None:
+    """None when either side is missing. The paper's value is a point, an interval [lo, hi], a
+    value per section (three), or an inequality; ours is a point, a range (seeds, an interval) or a
+    value per section:
+    - point vs point: within `tol` relative; point vs our range: the range, widened by `tol`
+      relative to the point, contains it;
+    - interval vs point or values: every value inside; interval vs our interval: they overlap;
+    - per section: section by section;
+    - inequality: every value of ours satisfies it."""
+    if paper is None or ours is None:
+        return None
+    vals = ours if isinstance(ours, list) else [ours]
+    if any(math.isnan(x) for x in vals):
+        return None
+    if isinstance(paper, tuple):
+        op, x = paper
+        return all({"<": v < x, "<=": v <= x, ">": v > x, ">=": v >= x}[op] for v in vals)
+    if isinstance(paper, list) and len(paper) == 2:
+        lo, hi = paper
+        if isinstance(ours, list) and len(ours) == 2:
+            return ours[0] <= hi and ours[1] >= lo
+        return all(lo <= v <= hi for v in vals)
+    if isinstance(paper, list):
+        return len(paper) == len(vals) and all(_near(o, p, tol) for o, p in zip(vals, paper, strict=True))
+    if isinstance(ours, list) and len(ours) == 2:
+        return ours[0] - tol * abs(paper) <= paper <= ours[1] + tol * abs(paper)
+    return all(_near(v, paper, tol) for v in vals)
+
+
+def claims_files(root=".") -> list[str]:
+    """Every stage's claims table on disk (results/<stage>/claims.csv), sorted."""
+    return sorted(p.relative_to(root).as_posix() for p in Path(root).glob("results/*/claims.csv"))
+
+
+def _fed_by(*reps: dict) -> str:
+    """Evidence sets, groups fed / total and split roles behind one or more audits, merged."""
+    sets: dict[str, dict] = {}
+    for rep in reps:
+        for es, s in rep["evidence_sets"].items():
+            d = sets.setdefault(es, dict(total=s["n_total"], fed={}))
+            d["fed"].update({g: v["role"] for g, v in s["fed"].items()})
+    parts = []
+    for es, d in sorted(sets.items(), key=lambda kv: (-len(kv[1]["fed"]), kv[0])):
+        if d["fed"]:
+            roles: dict[str, int] = {}
+            for r in d["fed"].values():
+                roles[r] = roles.get(r, 0) + 1
+            rs = ", ".join(f"{k} {v}" for k, v in sorted(roles.items()) if k and k != es)
+            parts.append(f"{es} {len(d['fed'])}/{d['total']}" + (f" ({rs})" if rs else ""))
+    return "; ".join(parts)
+
+
+def _doc(stage: str, claim_id: str, root: Path) -> str:
+    """The doc that explains a difference: one naming the claim id, else the stage's own doc."""
+    docs = sorted((root / "docs").glob("*.md"))
+    for d in docs:
+        if claim_id in d.read_text():
+            return d.relative_to(root).as_posix()
+    own = root / "docs" / f"{stage}.md"
+    return own.relative_to(root).as_posix() if own.exists() else ""
+
+
+def ledger(files, root=".") -> list[dict]:
+    """The rows of results/tables/claims.csv, in the order of `files` and of each table."""
+    root = Path(root)
+    records = load_records(root)
+    audits: dict[str, dict] = {}
+    rows = []
+    for f in files:
+        stage = Path(f).parent.name
+        rec = records.get(f)
+        if rec is None:
+            raise ValueError(f"{f}: no provenance record (rule: every claims table comes from a recorded job)")
+        reads = set(rec.get("reads") or [])
+        arts = [e["path"] for e in rec.get("inputs", [])
+                if e["path"].startswith("results/") and (not reads or e["path"] in reads)]
+        for a in arts:
+            if a not in audits:
+                audits[a] = audit(a, root, check_disk=False)
+        fed = _fed_by(*(audits[a] for a in arts))
+        with open(root / f, newline="") as fh:
+            for r in csv.DictReader(fh):
+                try:
+                    p, o = parse(r["paper"]), parse(r["ours"])
+                except ValueError as e:
+                    raise ValueError(f"{f}: claim {r['claim_id']}: {e} (rule: numbers, [lo, hi] or <x)") from None
+                tol = tolerance(stage, r["claim_id"])
+                ok = agrees(p, o, tol)
+                status = NO_PAPER if p is None else NOT_MEASURED if ok is None else AGREES if ok else DIFFERS
+                rows.append(dict(
+                    claim_id=r["claim_id"], stage=stage, section=r["section"], quantity=r["quantity"],
+                    paper=r["paper"], ours=r["ours"], unit=r["unit"], tolerance=tol, status=status,
+                    agrees="" if ok is None else ok, artifact=" ".join(arts), fed_by=fed,
+                    explained_in=_doc(stage, r["claim_id"], root) if status == DIFFERS else "",
+                ))
+    return rows
+
+
+def counts(rows: list[dict]) -> dict:
+    n = [r for r in rows if r["status"] != NO_PAPER]
+    diff = [r for r in rows if r["status"] == DIFFERS]
+    return dict(paper_numbers=len(n), agree=sum(r["status"] == AGREES for r in rows), differ=len(diff),
+                not_measured=sum(r["status"] == NOT_MEASURED for r in rows),
+                unexplained=sum(not r["explained_in"] for r in diff))
+
+
+def count_line(rows: list[dict]) -> str:
+    c = counts(rows)
+    return (f"{c['paper_numbers']} paper numbers, {c['agree']} reproduced within tolerance, {c['differ']} differ, "
+            f"each difference linked to the doc that explains it ({c['unexplained']} without one), "
+            f"{c['not_measured']} not measured in this run")
+
+
+def markdown(rows: list[dict]) -> str:
+    """results/tables/claims.md: the count line, then one table per paper section."""
+    out = ["# Claims ledger", "", count_line(rows), ""]
+    by: dict[str, list[dict]] = {}
+    for r in rows:
+        by.setdefault(r["section"], []).append(r)
+    for sec in sorted(by, key=section_key):
+        rs = by[sec]
+        c = counts(rs)
+        out += [f"## {sec}", "", f"{c['paper_numbers']} paper numbers, {c['agree']} within tolerance, "
+                f"{c['differ']} differ", "",
+                "| claim | quantity | paper | ours | unit | status | explained in | fed by |",
+                "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+        for r in rs:
+            doc = f"[{r['explained_in']}](../../{r['explained_in']})" if r["explained_in"] else ""
+            out.append(f"| {r['claim_id']} | {r['quantity']} | {r['paper']} | {r['ours']} | {r['unit']} | "
+                       f"{r['status']} | {doc} | {r['fed_by']} |")
+        out.append("")
+    return "\n".join(out)
+
+
+def write(rows: list[dict], csv_out, md_out, html_out=None) -> None:
+    with open(csv_out, "w", newline="") as f:
+        w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+    Path(md_out).write_text(markdown(rows) + "\n")
+    if html_out:
+        rows = sorted(rows, key=lambda r: section_key(r["section"]))
+        Path(html_out).write_text(html.table("Claims ledger", count_line(rows), COLUMNS, rows,
+                                             lambda r: "differs" if r["status"] == DIFFERS else ""))
+
+
+def read(path="results/tables/claims.csv") -> list[dict]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))

@@ -1,0 +1,11 @@
+"""The run as a Workflow Run RO-Crate: results/crate/ro-crate-metadata.json."""
+
+import sys
+from pathlib import Path
+
+from embodied_snap.lineage.records import tracked
+from embodied_snap.paper.crate import write
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    print(write(".", str(Path(snakemake.output[0]).parent)), file=sys.stderr)

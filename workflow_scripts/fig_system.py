@@ -1,0 +1,21 @@
+"""Figure 1: the arm, the primitive on a recorded strike, the shared policy's commands."""
+
+import json
+import sys
+from pathlib import Path
+
+from embodied_snap.characterize.load import group
+from embodied_snap.figures.system import plot_system
+from embodied_snap.io import read_parquet
+from embodied_snap.lineage.records import tracked
+
+sys.stderr = open(snakemake.log[0], "w")
+with tracked(snakemake):
+    i = snakemake.input
+    mocap, servo, meta = group(snakemake.params.raw, snakemake.params.group)
+    selected = json.load(open(i.summary))["selected"]
+    ev = read_parquet(next(f for f in i.evals if Path(f).stem == f"shared_seed{selected['seed']}"))
+    # the render's path, or an empty list with a real rig
+    render = str(i.render) if isinstance(i.render, str) else None
+    shown = plot_system(render, mocap, servo, meta, selected, ev, snakemake.output.pdf, snakemake.output.png)
+    print(json.dumps(shown, indent=1), file=sys.stderr)
