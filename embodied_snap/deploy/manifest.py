@@ -137,7 +137,7 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
                     goal_map="servo 3(s-1)+k pulls tendon k (azimuth 120(k-1) deg) of section s; goals in ticks "
                              "from the straight hanging arm (Homing Offset sets rest = 0)",
                     baud=cfg["baud"], hz=cfg["servo_hz"], watchdog_ms=cfg["watchdog_ms"],
-                    reply_retries=cfg["reply_retries"]),
+                    reply_timeout_ms=cfg["reply_timeout_ms"], reply_retries=cfg["reply_retries"]),
         calibration=dict(lever_ticks_per_rad=servo_fit["lever_ticks_per_rad"],
                          ceiling_rad_s=servo_fit["ceiling_rad_s"], rated_speed_tick_s=rig["rated_speed_tick_s"]),
         envelope=envelope(workspace["rho_max"], ranges["s3"][1], sch["carry_ticks"], cfg["envelope_margin"]),
