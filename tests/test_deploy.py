@@ -303,3 +303,73 @@ def test_table2_counts_and_paper_column():
     assert t.result.tolist()[0] == "3/5" and t.paper.tolist()[0] == "18/18" and t.paper.tolist()[-1] == "none"
     mixed = df.assign(open_loop=[True, False, True, True])
     assert D.summarize(mixed, 5, 3, 110.0, 1.0, 0)["online_correction"] != "none"
+
+
+# --- the simulated rig behind the bus: live physics, the block on its support, retrieval ------------
+
+
+def test_stepper_steps_the_physics_of_sim_run_live():
+    """Goals arriving at their times step the same physics as sim.run on the precomputed shafts:
+    present position and current come from the simulation (the loop deflects under cable tension)."""
+    from embodied_snap.twin import servo as SV
+    from embodied_snap.twin import sim
+
+    dt, n, rate = 0.001, 600, np.full(9, 3000.0)
+    G = np.array([900.0, 0, 0, 500, 0, 0, 0, 0, 0])
+    st = Stepper(dict(M.NOMINAL), dict(rate=rate, tau=[0.03] * 9), dt, TR.LATCH)
+    for i in range(9):
+        st.set_torque(i, True, 0.0)
+        st.set_goal(i, G[i], dt)
+    st.advance(n * dt)
+    goals = np.tile(G, (n, 1))
+    goals[0] = 0.0
+    shaft = SV.present_from_goal(goals, dt, rate, np.full(9, 0.03))
+    ref = sim.run(dict(M.NOMINAL), shaft, dt, TR.LATCH, rate=rate)
+    tr, present = st.finish()
+    assert np.array_equal(present, ref.present) and np.array_equal(tr.pos, ref.pos)
+    assert np.array_equal(st.present(), ref.present[-1])
+    assert present[-1, 0] < shaft[-1, 0] - 1.0  # the loaded loop gives way by its deflection
+    assert np.allclose(present[-1], shaft[-1] - SV.deflection(ref.tension[-2]))
+    cur = np.mean([st.current_ma() for _ in range(50)], axis=0)
+    assert cur[0] > cur[8] + 10.0  # the pulling servo draws the current of its cable's tension
+
+
+def test_block_stays_on_its_support_until_pulled():
+    from embodied_snap.twin import sim
+    from embodied_snap.twin.deployment import block_at
+
+    target = block_at([0.3, -0.6, 0.2], [-0.5, 0.3, -0.8])
+    arm = sim.Arm(dict(M.NOMINAL, block_mass=TR.BLOCK["mass_kg"]), 0.001, TR.LATCH, target=target, seal=TR.SEAL,
+                  block=TR.BLOCK)
+    for _ in range(500):
+        arm.step(np.zeros(9))
+    tr = arm.trial()
+    assert np.abs(tr.target_pos - target["pos"]).max() < 1e-3 and tr.events["released"] is None
+    assert np.abs(np.abs(tr.target_quat @ target["quat"]) - 1).max() < 1e-4  # and does not turn
+    arm.d.eq_active[arm.support] = 0  # off its support, the block falls
+    for _ in range(200):
+        arm.step(np.zeros(9))
+    assert arm.trial().target_pos[-1, 1] < target["pos"][1] - 0.1
+
+
+def test_retrieved_is_measured_from_the_motion_capture():
+    import pandas as pd
+
+    from embodied_snap.twin.deployment import retrieved
+
+    t = np.arange(0, 2.0, 1 / 240)
+    tip = np.stack([0.3 * t, np.full_like(t, -0.5), np.zeros_like(t)], 1)
+    stand = np.array([0.2, -0.7, 0.0])
+
+    def frame(block):
+        cols = dict(t=t, tip_valid=True, target_valid=True)
+        cols.update({f"tip_{a}": tip[:, k] for k, a in enumerate("xyz")})
+        cols.update({f"target_{a}": block[:, k] for k, a in enumerate("xyz")})
+        return pd.DataFrame(cols)
+
+    carried = np.where((t > 0.5)[:, None], tip + [0.0, -0.2, 0.0], stand)
+    assert retrieved(frame(carried))
+    assert not retrieved(frame(np.tile(stand, (len(t), 1))))  # never left its support
+    dropped = carried.copy()
+    dropped[:, 1] -= np.where(t > 1.9, 4.9 * (t - 1.9) ** 2, 0.0)  # falling for the last 0.1 s
+    assert not retrieved(frame(dropped))  # the seal let go before the end of the carry

@@ -30,7 +30,7 @@ HEADER = b"\xff\xff\xfd\x00"
 BROADCAST = 0xFE
 PING, READ, WRITE, STATUS, SYNC_READ, SYNC_WRITE = 0x01, 0x02, 0x03, 0x55, 0x82, 0x83
 ERR_ACCESS, ERR_CRC = 0x07, 0x03
-PHYSICS_SLICE_S = 0.005  # the physics thread checks the watchdog at least this often (trial clock)
+PHYSICS_SLICE_S = 0.002  # trial clock: the physics thread checks the watchdog and yields this often
 
 
 def _crc_table():
@@ -203,6 +203,7 @@ class VirtualBus:
                 time.sleep(0.001)
                 continue
             self.stepper.advance(min(t, self.stepper.t + PHYSICS_SLICE_S))
+            time.sleep(0)  # hand the GIL to the bus thread if a packet is waiting
 
     def _tick(self) -> float | None:
         """The watchdog and the faults that start at a time, up to now; returns now (None before
