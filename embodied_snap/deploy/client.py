@@ -37,8 +37,9 @@ class DeployError(RuntimeError):
 
 
 PORT_ERRORS = (OSError, _TermiosError)
-DRAIN_MS = 5.0  # after a lost reply, wait this long for it to land before dropping it: a lost reply
-# and its retry then stay inside the gate's 50 ms servo-log gap (cycle 10 + 20 + 5 + the retry)
+DRAIN_SHARE = 0.25  # after a lost reply, wait this share of the reply timeout for it to land before
+# dropping it (5 ms at the lab's 20 ms): a lost reply and its retry then stay inside the gate's 50 ms
+# servo-log gap (cycle 10 + 20 + 5 + the retry), and a reply later still is not taken for the next one
 
 
 def _sdk():
@@ -73,7 +74,7 @@ class Bus:
 
     def __init__(self, port: str, baud: int, ids, retries: int, reply_ms: float):
         dxl = _sdk()
-        self.dxl, self.ids, self.retries = dxl, list(ids), retries
+        self.dxl, self.ids, self.retries, self.reply_ms = dxl, list(ids), retries, reply_ms
         self.port = _port_class(dxl, reply_ms)(port)
         self.ph = dxl.PacketHandler(2.0)
         if not self.port.openPort():
@@ -91,7 +92,7 @@ class Bus:
     def drain(self) -> None:
         """After a lost reply: wait out a reply still in flight, then drop whatever is in the receive
         buffer, so that a late reply is never taken for the answer to the next question."""
-        time.sleep(DRAIN_MS / 1000)
+        time.sleep(self.reply_ms * DRAIN_SHARE / 1000)
         self.port.is_using = False
         self.port.ser.reset_input_buffer()
 
