@@ -3,10 +3,12 @@ virtual XM430s on a pseudo-terminal (vbus.py) whose shafts drive the arm (steppe
 `esnap deploy`'s own code (embodied_snap.deploy.client) talking to them as to any serial port.
 
 The bus runs in its own process (as the servos are other hardware: the client's busy polling of
-the port must not starve it). The client writes the servo log and meta.json of a complete trial;
-the rig adds what its motion capture saw (240 Hz, mocap.py) and what the operator observes:
-attached (the cup sealed on the block's face), retrieved (it stayed on through the carry: a seal
-leaks with its tilt, as in the acquisition, acquire.py) and snap_speed_event. An aborted trial
+the port must not starve it), the arm's physics live behind it. The block is a free body on its
+support (truth.BLOCK). The client writes the servo log and meta.json of a complete trial; the rig
+adds what its motion capture saw (240 Hz, mocap.py, the block included) and what the operator
+observes: attached (the cup sealed on the block's face), retrieved (the block left its support and
+was still on the cup at the end of the carry, measured from the motion capture: `retrieved`) and
+snap_speed_event. An aborted trial
 leaves only `aborted/<id>.json`, and no index row.
 """
 

@@ -2,7 +2,8 @@
 are the simulated rig's (stepper.py).
 
 `VirtualBus(stepper).start()` opens a pty and answers on it, in a thread, like the real chain
-behind a U2D2: CRC-16 (polynomial 0x8005), byte stuffing, PING, READ, WRITE, SYNC_READ, SYNC_WRITE
+behind a U2D2 (the arm's physics runs in a second thread, `_physics`, so a reply never waits for it):
+CRC-16 (polynomial 0x8005), byte stuffing, PING, READ, WRITE, SYNC_READ, SYNC_WRITE
 (broadcast id 0xFE). Goals written drive the stepper in wall-clock time from the first goal
 written with torque on (the trial clock); present position and current are the stepper's. Torque
 Enable (64), the Bus Watchdog (98: a servo that hears no instruction packet for its period stops
