@@ -462,3 +462,13 @@ def test_retrieved_is_measured_from_the_motion_capture():
     dropped = carried.copy()
     dropped[:, 1] -= np.where(t > 1.9, 4.9 * (t - 1.9) ** 2, 0.0)  # falling for the last 0.1 s
     assert not retrieved(frame(dropped))  # the seal let go before the end of the carry
+
+
+def test_no_placement_is_refused_by_its_own_manifest():
+    """A placement keeps its strike point's elevation at the new distance: only points whose placed
+    target stays inside the target box are used (else the trial would be refused before it starts)."""
+    ws = _workspace(np.random.default_rng(3))
+    box = MF.feature_box(ws, 0.0)
+    pl = MF.placements(ws, (0.5, 0.7), 91, 40, box)
+    g = geometry.features(np.array([p["target_m"] for p in pl]), np.array(ws["hanging_axis"]))
+    assert np.all((g >= box["lo"]) & (g <= box["hi"]))
