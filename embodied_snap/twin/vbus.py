@@ -33,6 +33,7 @@ PING, READ, WRITE, STATUS, SYNC_READ, SYNC_WRITE = 0x01, 0x02, 0x03, 0x55, 0x82,
 ERR_ACCESS, ERR_CRC = 0x07, 0x03
 PHYSICS_SLICE_S = 0.002  # trial clock: the physics thread checks the watchdog and yields this often
 PHYSICS_YIELD_S = 0.0005  # wall clock: how long it yields each time
+PHYSICS_NICE = 5  # the physics thread's nice increment (Linux: per thread)
 
 
 def _crc_table():
@@ -197,7 +198,12 @@ class VirtualBus:
 
     def _physics(self) -> None:
         """Step the arm to the trial clock, in slices of PHYSICS_SLICE_S (the watchdog and the faults
-        checked before each), and wait for the clock once it is caught up."""
+        checked before each), and wait for the clock once it is caught up. On Linux a thread has its own
+        nice value: this one runs below the bus thread, so a busy machine delays the physics first."""
+        try:
+            os.nice(PHYSICS_NICE)
+        except OSError:
+            pass
         while not self._stop.is_set():
             with self._lock:
                 t = self._tick()
