@@ -19,6 +19,8 @@ import numpy as np
 
 from embodied_snap.deploy import controltable as CT
 from embodied_snap.deploy.client import Bus
+from embodied_snap.twin import model as M
+from embodied_snap.twin import truth as TR
 from embodied_snap.twin.stepper import Stepper
 from embodied_snap.twin.vbus import VirtualBus
 
@@ -26,7 +28,7 @@ LIMITS = ([-20000] * 9, [20000] * 9)
 
 
 def serve(conn):
-    st = Stepper({}, dict(rate=[3100.0] * 9, tau=[0.03] * 9), 0.001, {})
+    st = Stepper(dict(M.NOMINAL), dict(rate=[3100.0] * 9, tau=[0.03] * 9), 0.001, TR.LATCH)
     bus = VirtualBus(st, *LIMITS)
     conn.send(bus.start())
     conn.recv()
@@ -58,7 +60,7 @@ def main() -> None:
     proc = ctx.Process(target=serve, args=(there,), daemon=True)
     proc.start()
     port = here.recv()
-    bus = Bus(port, 1_000_000, range(1, 10), retries=2)
+    bus = Bus(port, 1_000_000, range(1, 10), retries=2, reply_ms=20.0)
     for i in range(1, 10):
         bus.write(i, CT.TORQUE_ENABLE, 1)
     busy = []

@@ -33,7 +33,7 @@ def trial(raw, gid: str, man: dict) -> dict:
     th, _ = M.section_bends(mc)
     hang = np.nanmedian(th[t < lab["t_preload"], 1])
     pre = np.nanmax(th[(t >= lab["t_preload"]) & (t <= lab["t_slack"]), 1])
-    f = trials.features(mc, meta)
+    f = trials.features(mc, meta, man["primitive"]["end_effector_m"])  # the exported arm's end effector
     plan = C.plan(man, prog["target_m"])
     logged = sv[[f"goal_{i}" for i in range(1, 10)]].to_numpy()
     open_loop = logged.shape == plan["goals"].shape and bool(np.array_equal(logged, plan["goals"]))

@@ -37,9 +37,9 @@ class DeployError(RuntimeError):
 
 
 PORT_ERRORS = (OSError, _TermiosError)
-REPLY_MS = 20.0  # a reply later than this (plus its bytes' time on the wire) is lost
-DRAIN_MS = 5.0  # after a lost reply, wait this long for it to land before dropping it: a lost reply
-# and its retry then stay inside the gate's 50 ms servo-log gap (cycle 10 + 20 + 5 + the retry)
+DRAIN_SHARE = 0.25  # after a lost reply, wait this share of the reply timeout for it to land before
+# dropping it (5 ms at the lab's 20 ms): a lost reply and its retry then stay inside the gate's 50 ms
+# servo-log gap (cycle 10 + 20 + 5 + the retry), and a reply later still is not taken for the next one
 
 
 def _sdk():
@@ -48,7 +48,7 @@ def _sdk():
     return dxl
 
 
-def _port_class(dxl):
+def _port_class(dxl, reply_ms: float):
     class Port(dxl.PortHandler):
         """dynamixel-sdk's port, but a read waits up to 0.5 ms for bytes instead of returning at once:
         the SDK polls the port in a loop until a reply or its timeout, and a non-blocking read makes
@@ -61,10 +61,10 @@ def _port_class(dxl):
 
         def setPacketTimeout(self, packet_length):
             # The SDK allows 2 x 16 ms of USB latency timer per reply; with the adapter's latency
-            # timer at 1 ms (docs/deployment.md) a reply is late after REPLY_MS, so one lost reply
-            # and its retry cost about four 100 Hz cycles, not seven.
+            # timer at 1 ms (docs/deployment.md) a reply is late after the manifest's reply_timeout_ms
+            # (20 ms), so one lost reply and its retry cost about four 100 Hz cycles, not seven.
             self.packet_start_time = self.getCurrentTime()
-            self.packet_timeout = self.tx_time_per_byte * packet_length + REPLY_MS
+            self.packet_timeout = self.tx_time_per_byte * packet_length + reply_ms
 
     return Port
 
@@ -72,10 +72,10 @@ def _port_class(dxl):
 class Bus:
     """The servo chain behind one serial port, through dynamixel-sdk."""
 
-    def __init__(self, port: str, baud: int, ids, retries: int):
+    def __init__(self, port: str, baud: int, ids, retries: int, reply_ms: float):
         dxl = _sdk()
-        self.dxl, self.ids, self.retries = dxl, list(ids), retries
-        self.port = _port_class(dxl)(port)
+        self.dxl, self.ids, self.retries, self.reply_ms = dxl, list(ids), retries, reply_ms
+        self.port = _port_class(dxl, reply_ms)(port)
         self.ph = dxl.PacketHandler(2.0)
         if not self.port.openPort():
             raise DeployError(f"cannot open port {port}")
@@ -92,7 +92,7 @@ class Bus:
     def drain(self) -> None:
         """After a lost reply: wait out a reply still in flight, then drop whatever is in the receive
         buffer, so that a late reply is never taken for the answer to the next question."""
-        time.sleep(DRAIN_MS / 1000)
+        time.sleep(self.reply_ms * DRAIN_SHARE / 1000)
         self.port.is_using = False
         self.port.ser.reset_input_buffer()
 
@@ -298,7 +298,8 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     if confirm is not None and not confirm():
         raise DeployError("refused: not confirmed by the operator")
     out_dir = Path(out) if out else None
-    bus = Bus(port, baud or man["servos"]["baud"], man["servos"]["ids"], man["servos"]["reply_retries"])
+    bus = Bus(port, baud or man["servos"]["baud"], man["servos"]["ids"], man["servos"]["reply_retries"],
+              man["servos"]["reply_timeout_ms"])
     old = signal.signal(signal.SIGTERM, _sigterm)
     cause, log = None, None
     try:

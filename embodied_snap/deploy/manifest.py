@@ -84,23 +84,29 @@ def feature_box(ws: dict, pad_m: float) -> dict:
     return dict(lo=(g.min(0) - pad_m).round(5).tolist(), hi=(g.max(0) + pad_m).round(5).tolist(), pad_m=pad_m)
 
 
-def placements(ws: dict, distances_m, bearing_range_deg: float, n: int) -> list[dict]:
+def placements(ws: dict, distances_m, bearing_range_deg: float, n: int, box: dict | None = None) -> list[dict]:
     """n target placements at distances spread over distances_m and bearings over bearing_range_deg
     centred on the canonical strike bearing. A placement's distance is horizontal, from the hanging
     axis (the radius r of Eq. 5, what the lab measures on the table). For each: the recorded strike
     point whose r is nearest, its horizontal radius set to the distance (elevation kept), turned
     about the hanging axis to the bearing, its face normal against the recorded direction of travel
-    (as the operator places the block)."""
+    (as the operator places the block). With `box` (feature_box), only strike points whose placed
+    target stays inside the box are candidates, so that no placement is refused by its own manifest."""
     ax = np.asarray(ws["hanging_axis"], float)
     ax = ax / np.linalg.norm(ax)
     P, D = np.asarray(ws["strike_points_m"], float), np.asarray(ws["strike_dirs"], float)
     centre = ws["phi0_deg"] + ws["delta_str_deg"]
     dist = np.linspace(*distances_m, n)
     bear = centre + np.linspace(-bearing_range_deg / 2, bearing_range_deg / 2, n)
-    r = geometry.features(P, ax)[:, 2]
+    _, e, r = geometry.features(P, ax).T
     out = []
     for i in range(n):
-        k = int(np.argmin(np.abs(r - dist[i])))
+        cost = np.abs(r - dist[i])
+        if box is not None:  # the placed target's (d, e, r): elevation kept, radius set to the distance
+            g = np.stack([np.hypot(e, dist[i]), e, np.full_like(e, dist[i])], 1)
+            inside = np.all((g > np.asarray(box["lo"]) + 1e-4) & (g < np.asarray(box["hi"]) - 1e-4), axis=1)
+            cost = np.where(inside, cost, np.inf) if inside.any() else cost
+        k = int(np.argmin(cost))
         along = (P[k] @ ax) * ax
         p = along + (P[k] - along) * dist[i] / r[k]
         turn = bear[i] - float(BR.bearing_deg(p, ax))
@@ -121,6 +127,7 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
     ranges = prim["ranges"]
     sch = cfg["schedule"]
     ws_keys = ("bin_lo_deg", "bin_width_deg", "rho_max", "phi0_deg", "delta_str_deg", "hanging_axis", "n_strikes")
+    box = feature_box(workspace, cfg["target_pad_m"])
     man = dict(
         format=FORMAT,
         code_version=code_version,
@@ -129,7 +136,7 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
                     selected_generation=run["selected_generation"]),
         actions=dict(ranges=ranges, timing_s=list(ranges["tau"]), workspace_fraction=pol["workspace_fraction"]),
         workspace={k: workspace[k] for k in ws_keys},
-        target_box=feature_box(workspace, cfg["target_pad_m"]),
+        target_box=box,
         primitive=dict(phi0_deg=prim["phi0_deg"], s2_ramp_s=prim["s2_ramp_s"],
                        cable_bearings_deg=list(CABLE_BEARINGS_DEG), antagonist_factor=ANTAGONIST_FACTOR,
                        end_effector_m=rig["end_effector_m"], schedule=dict(sch)),
@@ -137,11 +144,11 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
                     goal_map="servo 3(s-1)+k pulls tendon k (azimuth 120(k-1) deg) of section s; goals in ticks "
                              "from the straight hanging arm (Homing Offset sets rest = 0)",
                     baud=cfg["baud"], hz=cfg["servo_hz"], watchdog_ms=cfg["watchdog_ms"],
-                    reply_retries=cfg["reply_retries"]),
+                    reply_timeout_ms=cfg["reply_timeout_ms"], reply_retries=cfg["reply_retries"]),
         calibration=dict(lever_ticks_per_rad=servo_fit["lever_ticks_per_rad"],
                          ceiling_rad_s=servo_fit["ceiling_rad_s"], rated_speed_tick_s=rig["rated_speed_tick_s"]),
         envelope=envelope(workspace["rho_max"], ranges["s3"][1], sch["carry_ticks"], cfg["envelope_margin"]),
-        placements=placements(workspace, cfg["distances_m"], cfg["bearing_range_deg"], cfg["n_placements"]),
+        placements=placements(workspace, cfg["distances_m"], cfg["bearing_range_deg"], cfg["n_placements"], box),
         inputs={k: dict(path=str(p), sha256=sha256_file(p)) for k, p in sorted(inputs.items())},
         lineage=lineage,
     )

@@ -3,10 +3,12 @@ virtual XM430s on a pseudo-terminal (vbus.py) whose shafts drive the arm (steppe
 `esnap deploy`'s own code (embodied_snap.deploy.client) talking to them as to any serial port.
 
 The bus runs in its own process (as the servos are other hardware: the client's busy polling of
-the port must not starve it). The client writes the servo log and meta.json of a complete trial;
-the rig adds what its motion capture saw (240 Hz, mocap.py) and what the operator observes:
-attached (the cup sealed on the block's face), retrieved (it stayed on through the carry: a seal
-leaks with its tilt, as in the acquisition, acquire.py) and snap_speed_event. An aborted trial
+the port must not starve it), the arm's physics live behind it. The block is a free body on its
+support (truth.BLOCK). The client writes the servo log and meta.json of a complete trial; the rig
+adds what its motion capture saw (240 Hz, mocap.py, the block included) and what the operator
+observes: attached (the cup sealed on the block's face), retrieved (the block left its support and
+was still on the cup at the end of the carry, measured from the motion capture: `retrieved`) and
+snap_speed_event. An aborted trial
 leaves only `aborted/<id>.json`, and no index row.
 """
 
@@ -51,9 +53,31 @@ def rig(man: dict, placement: int, session: str, seed: int, dt: float, gid: str,
     pl = man["placements"][placement - 1]
     target = block_at(pl["target_m"], pl["normal"])
     r = TR.rng_for(seed, "deployment", gid)
-    st = Stepper(TR.arm_params(sess), TR.servo_params(seed), dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r)
+    arm = dict(TR.arm_params(sess), block_mass=TR.BLOCK["mass_kg"])
+    st = Stepper(arm, TR.servo_params(seed), dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r, block=TR.BLOCK)
     bus = VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults)
     return bus, st, target, sess, r
+
+
+LEFT_M = 0.03  # m: the block left its support when the motion capture sees it this far from where it stood
+HELD_S = 0.2  # s: at the end of the carry the block moved with the tip over this long ...
+HELD_WITHIN_M = 0.3  # m: ... within this distance of it (cup 15 cm beyond the tip, block centre up to 9 cm beyond) ...
+HELD_SPREAD_M = 0.02  # m: ... and that distance varied by less than this (a dropped block falls away)
+
+
+def retrieved(mc) -> bool:
+    """What the operator sees: the block left its support and was still on the cup at the end of
+    the carry, from the motion capture (block and tip markers) alone."""
+    ok = mc.target_valid.to_numpy(bool) & mc.tip_valid.to_numpy(bool)
+    blk = mc[["target_x", "target_y", "target_z"]].to_numpy()[ok]
+    tip = mc[["tip_x", "tip_y", "tip_z"]].to_numpy()[ok]
+    t = mc.t.to_numpy()[ok]
+    if len(t) < 2:
+        return False
+    left = np.linalg.norm(blk - blk[0], axis=1).max() > LEFT_M
+    last = t >= t[-1] - HELD_S
+    dist = np.linalg.norm(blk[last] - tip[last], axis=1)
+    return bool(left and dist.max() < HELD_WITHIN_M and dist.max() - dist.min() < HELD_SPREAD_M)
 
 
 def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, session: str, k: int,
@@ -69,7 +93,7 @@ def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, sessio
     vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / st.dt
     vtip = np.convolve(vtip, np.ones(4) / 4, mode="same")
     attached = ev["sealed"] is not None
-    retained = attached and r.uniform() < 1.0 - ev.get("seal_tilt", 0.0) / 300.0  # tilted seals leak
+    retained = retrieved(mc)
     R = MC.quat_to_mat(np.asarray(sess["base_quat"]))
     axis = R @ np.array([0.0, -1.0, 0.0])
     meta.update(session=session, source="twin", recorded_at=(T0 + _dt.timedelta(seconds=120 * k)).isoformat(),

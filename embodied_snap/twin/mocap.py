@@ -46,7 +46,11 @@ def mocap_frame(trial, calib: dict, target: dict | None, rng: np.random.Generato
     poses["base"] = (_resample(t_step, trial.base, t) @ R.T + B, np.tile(qB, (n, 1)))  # the mount translates
     for j, b in enumerate(("s1", "s2", "tip")):
         poses[b] = (pos[:, j] @ R.T + B, qmul(qB[None], quat[:, j]))
-    if target is not None:
+    if target is not None and trial.target_pos is not None:  # a free block (deployment): it moves
+        tq = _resample(t_step, trial.target_quat, t)
+        tq /= np.linalg.norm(tq, axis=-1, keepdims=True)
+        poses["target"] = (_resample(t_step, trial.target_pos, t) @ R.T + B, qmul(qB[None], tq))
+    elif target is not None:
         poses["target"] = (
             np.tile(np.asarray(target["pos"]) @ R.T + B, (n, 1)),
             np.tile(qmul(qB, target["quat"]), (n, 1)),

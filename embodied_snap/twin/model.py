@@ -146,6 +146,19 @@ def mjcf(p: dict) -> str:
             for ax in "zx":
                 eqs += f'<joint name="latch_{name}_{ax}" joint1="{name}_{ax}" active="false" solref="0.01 1"/>'
     eqs += f'<connect name="seal" body1="ee_{N_EE - 1}" body2="target" anchor="0 0 0" active="false"/>'
+    target = (
+        '<body name="target" mocap="true" pos="0 -5 0">'
+        '<geom name="target_g" type="box" size="0.05 0.03 0.015" contype="1" conaffinity="1" condim="3" '
+        'friction="1.0"/></body>'
+    )
+    if "block_mass" in p:
+        # deployment: the block is a free body, held on its support by a weld to the world (sim.Arm)
+        target = (
+            '<body name="target" pos="0 -5 0"><freejoint name="target_free"/>'
+            f'<geom name="target_g" type="box" size="0.05 0.03 0.015" mass="{p["block_mass"]:.6g}" contype="1" '
+            'conaffinity="1" condim="3" friction="1.0"/></body>'
+        )
+        eqs += '<weld name="support" body1="target" active="false"/>'
     # Euler integrates joint damping implicitly; implicitfast would also differentiate the
     # viscous drag every step (3x slower) for no change: halving dt moves tip speeds < 0.5 %.
     return f"""<mujoco model="embodied_snap_arm">
@@ -153,9 +166,7 @@ def mjcf(p: dict) -> str:
 <option timestep="0.001" gravity="0 -9.81 0" integrator="Euler" viscosity="{p.get("drag", 0.0)}"/>
 <worldbody>
 <body name="base" pos="0 0 0">{mount}{body}</body>
-<body name="target" mocap="true" pos="0 -5 0">
-<geom name="target_g" type="box" size="0.05 0.03 0.015" contype="1" conaffinity="1" condim="3" friction="1.0"/>
-</body>
+{target}
 </worldbody>
 <tendon>{tendons}</tendon>
 <actuator>{acts}</actuator>

@@ -1,15 +1,20 @@
-"""The simulated rig as the servo bus sees it: a stepping object that takes goals and advances in
-time, returning present position and current; the arm's poses at the end of the trial.
+"""The simulated rig as the servo bus sees it: goals and torque switches in, present position and
+current out, the arm's physics stepped live.
 
-This is the one coupling between the virtual Dynamixel bus (vbus.py) and the simulated rig. Today
-the present position is an open-loop function of the goal (servo.py: the gearbox is not
-backdrivable), so `advance` integrates the servo model step by step as goals arrive in wall-clock
-time, and `finish` runs the arm's physics (sim.run: fold latch, cup seal on the target block) on
-the present positions it produced, at the twin's step dt. A servo model whose position loop lives
-inside the physics step changes `advance` and `finish` only; the bus does not change.
+This is the one coupling between the virtual Dynamixel bus (vbus.py) and the simulated rig. The bus
+hands over what it heard with its trial-clock time (`set_goal`, `set_torque`, `stop`); `advance(t)`
+steps the arm to t, one `mj_step` per dt (sim.Arm: the servo position loops inside the physics step,
+the fold latch, the cup seal, the block on its support), applying each of those at its time. Each
+servo's unloaded loop response (the "shaft") follows its goal as in servo.present_from_goal, and
+stands still while torque is off or after its watchdog stopped it (the gearbox holds). Present
+position and current come from the simulation: the shaft minus the loop's deflection under the cable
+tension, and the current of that tension (servo.py). `present`/`current_ma` read the last step, so
+the bus may answer from another thread while `advance` runs.
 """
 
 from __future__ import annotations
+
+import threading
 
 import numpy as np
 
@@ -19,50 +24,79 @@ from . import sim
 
 class Stepper:
     def __init__(self, arm: dict, servo: dict, dt: float, latch: dict, target: dict | None = None,
-                 seal: dict | None = None, rng: np.random.Generator | None = None):
-        self.arm, self.dt, self.latch, self.target, self.seal = arm, dt, latch, target, seal
+                 seal: dict | None = None, rng: np.random.Generator | None = None, block: dict | None = None):
+        self.dt = dt
         self.rate = np.minimum(np.asarray(servo["rate"], float), SV.RATE_RATED)
         self.a = dt / np.asarray(servo["tau"], float)
-        self.w = np.zeros(9)  # present position, ticks (float)
+        self.sim = sim.Arm(arm, dt, latch, target=target, seal=seal, rate=self.rate, n=8192, block=block)
+        self.w = np.zeros(9)  # the loops' unloaded response (shaft), ticks (float)
         self.goal = np.zeros(9)
         self.moving = np.zeros(9)
         self.powered = np.zeros(9, bool)  # torque enabled: without it the gearbox holds the shaft
         self.t = 0.0
-        self.rows: list[np.ndarray] = []  # present positions, one row per physics step
+        self.rows: list[np.ndarray] = []  # the shafts, one row per physics step
+        self._present = np.zeros(9)
+        self._tension = np.zeros(9)
+        self._events: list[tuple[float, str, int, float]] = []  # (t, what, servo, value), appended by the bus
+        self._ev_lock = threading.Lock()
         self.rng = rng or np.random.default_rng(0)
 
+    def _at(self, t: float | None, what: str, i: int, value: float = 0.0) -> None:
+        with self._ev_lock:
+            self._events.append((self.t if t is None else t, what, i, value))
+
+    def _apply_due(self) -> None:
+        with self._ev_lock:
+            due = [e for e in self._events if e[0] <= self.t + 1e-12]
+            self._events = [e for e in self._events if e[0] > self.t + 1e-12]
+        for _, what, i, value in sorted(due, key=lambda e: e[0]):
+            if what == "goal":
+                self.goal[i] = value
+            elif what == "torque":
+                self.powered[i] = bool(value)
+                if not value:
+                    self.goal[i] = self.w[i]
+            elif what == "stop":
+                self.goal[i] = self.w[i]
+
     def advance(self, t: float) -> None:
-        """Integrate the servos from self.t to t (s) at dt with the goals set now."""
-        n = int((t - self.t) / self.dt)
+        """Step the arm from self.t to t (s), applying what the bus heard at its time."""
         step = self.rate * self.dt
-        for _ in range(max(n, 0)):
+        for _ in range(max(int((t - self.t) / self.dt + 1e-9), 0)):
+            self._apply_due()
             d = np.where(self.powered, np.clip((self.goal - self.w) * self.a, -step, step), 0.0)
             self.w = self.w + d
-            self.rows.append(self.w.copy())
-        if n > 0:
+            self.rows.append(self.w)
+            self._present = self.sim.step(self.w).copy()
+            self._tension = -self.sim.force[self.sim.i - 1]
             self.moving = (np.abs(d) > 0.2 * step).astype(float)
-            self.t += n * self.dt
+            self.t += self.dt
 
-    def set_goal(self, i: int, goal: float) -> None:
-        self.goal[i] = goal
+    def set_goal(self, i: int, goal: float, t: float | None = None) -> None:
+        self._at(t, "goal", i, goal)
 
-    def set_torque(self, i: int, on: bool) -> None:
-        self.powered[i] = on
-        if not on:
-            self.goal[i] = self.w[i]
+    def set_torque(self, i: int, on: bool, t: float | None = None) -> None:
+        self._at(t, "torque", i, float(on))
 
-    def stop(self, i: int) -> None:
-        """Hold where it is (the watchdog fired)."""
-        self.goal[i] = self.w[i]
+    def stop(self, i: int, t: float | None = None) -> None:
+        """Hold where it is from t (the watchdog fired)."""
+        self._at(t, "stop", i)
 
     def present(self) -> np.ndarray:
-        return self.w.copy()
+        return self._present.copy()
 
     def current_ma(self) -> np.ndarray:
-        return SV.MA_IDLE * self.powered + 40.0 * self.moving + self.rng.normal(0.0, 3.0, 9)
+        """Current of the loop's torque under the cable tension; about zero with torque off."""
+        cur = SV.current_ma(self._tension, self.moving, self.rng)
+        return np.where(self.powered, cur, self.rng.normal(0.0, 3.0, 9))
 
     def finish(self, until: float | None = None) -> tuple[sim.Trial, np.ndarray]:
-        """The arm's physics on the present positions up to `until` (s; all if None): (trial, present (T, 9))."""
-        rows = self.rows if until is None else self.rows[:max(2, int(until / self.dt))]
-        present = np.asarray(rows) if rows else np.zeros((2, 9))
-        return sim.run(self.arm, present, self.dt, self.latch, target=self.target, seal=self.seal), present
+        """The trial up to `until` (s; all stepped so far if None), stepped on to it if the bus stopped
+        short: (trial, present (T, 9))."""
+        if until is not None and self.t < until:
+            self.advance(until)
+        n = None if until is None else max(2, int(until / self.dt + 1e-9))
+        if self.sim.i < 2:
+            self.advance(2 * self.dt)
+        tr = self.sim.trial(n)
+        return tr, tr.present

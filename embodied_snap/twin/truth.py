@@ -25,6 +25,9 @@ LATCH = dict(
 # The seal's own physics (the simulated cup seals from 1 m/s): the twin's truth that the pipeline's
 # attachment threshold (config characterize.attach_speed_mps) is measured against, not a protocol value.
 SEAL = dict(gap_m=0.03, overlap_m=0.02, speed_mps=1.0, tilt_deg=120.0)
+# The deployment's block (simulated hardware, chosen, not fitted): 50 g on a stand it leaves when the seal
+# pulls it with more than its weight (0.49 N); the 20 mm Ecoflex cup lets go above hold_n.
+BLOCK = dict(mass_kg=0.05, release_n=0.05 * 9.81, hold_n=3.0)
 BASE_LAB = (0.0, 1.45, 0.0)  # m: the arm's mount in the lab, Y up
 
 

@@ -2,7 +2,8 @@
 are the simulated rig's (stepper.py).
 
 `VirtualBus(stepper).start()` opens a pty and answers on it, in a thread, like the real chain
-behind a U2D2: CRC-16 (polynomial 0x8005), byte stuffing, PING, READ, WRITE, SYNC_READ, SYNC_WRITE
+behind a U2D2 (the arm's physics runs in a second thread, `_physics`, so a reply never waits for it):
+CRC-16 (polynomial 0x8005), byte stuffing, PING, READ, WRITE, SYNC_READ, SYNC_WRITE
 (broadcast id 0xFE). Goals written drive the stepper in wall-clock time from the first goal
 written with torque on (the trial clock); present position and current are the stepper's. Torque
 Enable (64), the Bus Watchdog (98: a servo that hears no instruction packet for its period stops
@@ -30,6 +31,9 @@ HEADER = b"\xff\xff\xfd\x00"
 BROADCAST = 0xFE
 PING, READ, WRITE, STATUS, SYNC_READ, SYNC_WRITE = 0x01, 0x02, 0x03, 0x55, 0x82, 0x83
 ERR_ACCESS, ERR_CRC = 0x07, 0x03
+PHYSICS_SLICE_S = 0.002  # trial clock: the physics thread checks the watchdog and yields this often
+PHYSICS_YIELD_S = 0.0005  # wall clock: how long it yields each time
+PHYSICS_NICE = 5  # the physics thread's nice increment (Linux: per thread)
 
 
 def _crc_table():
@@ -143,12 +147,15 @@ class VirtualBus:
         tty.setraw(self.master)
         self.port = os.ttyname(self.slave)
         self.thread = threading.Thread(target=self._serve, name="vbus", daemon=True)
+        self.sim_thread = threading.Thread(target=self._physics, name="vbus-physics", daemon=True)
         self.thread.start()
+        self.sim_thread.start()
         return self.port
 
     def stop(self) -> None:
         self._stop.set()
         self.thread.join(5)
+        self.sim_thread.join(5)
         for fd in (self.master, self.slave):
             try:
                 os.close(fd)
@@ -167,11 +174,12 @@ class VirtualBus:
         return 0.0 if self.t0 is None else time.monotonic() - self.t0
 
     def _serve(self) -> None:
+        """Answer every packet as it arrives. The arm's physics runs in its own thread (`_physics`),
+        so a reply never waits for the simulation to catch up."""
         buf = bytearray()
         while not self._stop.is_set():
             if self.closed:
                 time.sleep(0.002)
-                self._tick()
                 continue
             r, _, _ = select.select([self.master], [], [], 0.002)
             if r:
@@ -184,40 +192,59 @@ class VirtualBus:
                 pkts, buf = parse(buf)
                 for p in pkts:
                     with self._lock:
-                        self._tick()
                         self.last_rx = time.monotonic()
                         self.last_rx_t = self.now()
                         self._handle(*p)
-            with self._lock:
-                self._tick()
 
-    def _tick(self) -> None:
-        """Advance the shafts to now; the watchdog; the faults that start at a time."""
+    def _physics(self) -> None:
+        """Step the arm to the trial clock, in slices of PHYSICS_SLICE_S (the watchdog and the faults
+        checked before each), and wait for the clock once it is caught up. On Linux a thread has its own
+        nice value: this one runs below the bus thread, so a busy machine delays the physics first."""
+        try:
+            os.nice(PHYSICS_NICE)
+        except OSError:
+            pass
+        while not self._stop.is_set():
+            with self._lock:
+                t = self._tick()
+            if t is None or t <= self.stepper.t + self.stepper.dt:
+                time.sleep(0.001)
+                continue
+            self.stepper.advance(min(t, self.stepper.t + PHYSICS_SLICE_S))
+            # yield to the bus thread: a slice costs ~0.15 ms, so this still runs 3x faster than
+            # real time, and a loaded machine delays the physics, never a reply
+            time.sleep(PHYSICS_YIELD_S)
+
+    def _tick(self) -> float | None:
+        """The watchdog and the faults that start at a time, up to now; returns now (None before
+        the first goal)."""
+        if self.t0 is None:
+            return None
         t = self.now()
-        quiet_from = self.last_rx - (self.t0 if self.t0 is not None else self.last_rx)
+        if not self.closed and select.select([self.master], [], [], 0)[0]:
+            return t  # a packet has arrived and the bus thread has yet to read it: the servos heard it
+        quiet_from = self.last_rx - self.t0
         for s in self.servos:
             # the watchdog fires exactly one period after the last instruction packet: the shafts
             # move up to that instant and not after, however late this thread looks
             wd = s.get(CT.BUS_WATCHDOG)
             deadline = quiet_from + wd * CT.WATCHDOG_UNIT_MS / 1000
-            if 0 < wd < 0xFF and s.torque and self.t0 is not None and t > deadline:
-                self.stepper.advance(deadline)
+            if 0 < wd < 0xFF and s.torque and t > deadline:
                 s.put(CT.BUS_WATCHDOG, 0xFF)
                 s.watchdog_fired = True
-                self.stepper.stop(s.i)
+                self.stepper.stop(s.i, deadline)
                 self.stopped_at[s.i + 1] = deadline
-        if self.t0 is not None:
-            self.stepper.advance(t)
         f = self.faults
-        if "hw_error" in f and self.t0 is not None and t >= f["hw_error"]["at_s"]:
+        if "hw_error" in f and t >= f["hw_error"]["at_s"]:
             s = self.servos[f["hw_error"]["id"] - 1]
             if not s.hw_error:
                 s.hw_error = f["hw_error"].get("bits", 0x20)  # overload
                 s.put(CT.TORQUE_ENABLE, 0)  # the servo shuts its torque off on a hardware error
-                self.stepper.set_torque(s.i, False)
-        if "close" in f and self.t0 is not None and t >= f["close"]["at_s"] and not self.closed:
+                self.stepper.set_torque(s.i, False, t)
+        if "close" in f and t >= f["close"]["at_s"] and not self.closed:
             self.closed = True
             os.close(self.master)  # the adapter is gone: the client's next read or write fails
+        return t
 
     # --- instructions ----------------------------------------------------------------------------
     def _silent(self, dxl_id: int) -> bool:
@@ -260,14 +287,14 @@ class VirtualBus:
                 self.t0 = time.monotonic()
             self.goal_log.append((self.now(), s.i + 1, goal, apply))
             if apply:
-                self.stepper.set_goal(s.i, goal)
+                self.stepper.set_goal(s.i, goal, self.now())
                 s.mem[addr:addr + 4] = data
             return 0
         if addr == CT.TORQUE_ENABLE[0]:
             on = bool(data[0])
             if on and s.hw_error:
                 return ERR_ACCESS
-            self.stepper.set_torque(s.i, on)
+            self.stepper.set_torque(s.i, on, self.now())
         if addr == CT.BUS_WATCHDOG[0] and data[0] == 0:
             s.watchdog_fired = False
         s.mem[addr:addr + len(data)] = data
