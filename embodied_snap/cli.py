@@ -164,13 +164,15 @@ def cmd_resources(a) -> int:
     from .resources import ResourceError, render, set_resources, updated_profile
 
     try:
-        res = set_resources(a.benchmarks, rule_table(a.root))
+        res, missing = set_resources(a.benchmarks, rule_table(a.root))
     except ResourceError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     profile = Path(a.profile)
     old = profile.read_text()
-    new = updated_profile(old, render(res))
+    new = updated_profile(old, render(res, missing))
+    if missing:
+        print(f"warning: not measured in {a.benchmarks} (default-resources): {', '.join(missing)}", file=sys.stderr)
     if a.check:
         if new != old:
             print(f"{profile}: set-resources differ from {a.benchmarks} (run esnap resources)", file=sys.stderr)

@@ -12,6 +12,8 @@ follow the code after a change: rerun the paper budget, rerun the command, commi
   the cores its torch/BLAS threads use.
 
 Rules without a benchmark are tiny bookkeeping jobs: the profile's `default-resources` cover them.
+A benchmarked rule the run did not execute (a stage added since, or a target outside `all`) is
+listed in the profile as not measured and gets the default too, until a run measures it.
 """
 
 from __future__ import annotations
@@ -46,10 +48,10 @@ def read_benchmark(path: Path) -> tuple[float, float]:
     return secs, rss
 
 
-def measure(bench_dir: str | Path, patterns: dict[str, str]) -> dict[str, tuple[float, float]]:
-    """{rule: (longest wall seconds, largest max RSS MB)} over the benchmark files under bench_dir.
-    `patterns`: {rule: regex of its benchmark path, relative to the workflow root}. A rule with a
-    benchmark but no file, or a file no rule writes (a renamed rule), is an error."""
+def measure(bench_dir: str | Path, patterns: dict[str, str]) -> tuple[dict[str, tuple[float, float]], list[str]]:
+    """({rule: (longest wall seconds, largest max RSS MB)}, [rules with no file]) over the benchmark
+    files under bench_dir. `patterns`: {rule: regex of its benchmark path, relative to the workflow
+    root}. A file no rule writes (a renamed rule) is an error."""
     bench_dir = Path(bench_dir)
     regexes = {r: re.compile(p) for r, p in patterns.items()}
     # Patterns start with the workflow's "benchmarks/"; match files by their path under bench_dir.
@@ -62,10 +64,7 @@ def measure(bench_dir: str | Path, patterns: dict[str, str]) -> dict[str, tuple[
         for r in rules:
             found[r].append(read_benchmark(f))
     missing = sorted(r for r, v in found.items() if not v)
-    if missing:
-        raise ResourceError(f"{bench_dir}: no benchmark file for rule(s) {', '.join(missing)} "
-                            "(benchmarks of a full paper-budget run are needed)")
-    return {r: (max(s for s, _ in v), max(m for _, m in v)) for r, v in found.items()}
+    return {r: (max(s for s, _ in v), max(m for _, m in v)) for r, v in found.items() if v}, missing
 
 
 def rule_resources(secs: float, rss_mb: float, threads: int) -> dict[str, int]:
@@ -75,26 +74,31 @@ def rule_resources(secs: float, rss_mb: float, threads: int) -> dict[str, int]:
     return dict(mem_mb=int(mem), runtime=int(runtime), cpus_per_task=int(threads))
 
 
-def set_resources(bench_dir: str | Path, table: dict[str, dict]) -> dict[str, dict[str, int]]:
-    """{rule: {mem_mb, runtime, cpus_per_task}} for every benchmarked rule of `table`
-    (lineage.dag.rule_table: each rule's benchmark regex and threads)."""
+def set_resources(bench_dir: str | Path, table: dict[str, dict]) -> tuple[dict[str, dict[str, int]], list[str]]:
+    """({rule: {mem_mb, runtime, cpus_per_task}}, [benchmarked rules not measured]) for the
+    benchmarked rules of `table` (lineage.dag.rule_table: each rule's benchmark regex and threads)."""
     patterns = {r: t["benchmark"] for r, t in table.items() if t.get("benchmark")}
-    measured = measure(bench_dir, patterns)
+    measured, missing = measure(bench_dir, patterns)
     out = {}
     for r in sorted(measured):
         threads = table[r].get("threads")
         if not isinstance(threads, int):
             raise ResourceError(f"rule {r}: threads is not a number in the workflow (a function?)")
         out[r] = rule_resources(*measured[r], threads)
-    return out
+    return out, missing
 
 
-def render(resources: dict[str, dict[str, int]]) -> str:
-    """The generated tail of the profile: the marker, the margins used, and `set-resources`."""
+NOT_MEASURED = "# Not measured by these benchmarks (default-resources apply): "
+
+
+def render(resources: dict[str, dict[str, int]], missing: list[str] = ()) -> str:
+    """The generated tail of the profile: the marker, the margins used, the rules not measured, and
+    `set-resources`."""
     lines = [MARKER,
              f"# mem_mb = max RSS x {MEM_MARGIN} (>= {MEM_MIN}, step {MEM_STEP}), "
              f"runtime = wall time x {TIME_MARGIN} in minutes (>= {RUNTIME_MIN}),",
              "# cpus_per_task = the rule's threads.",
+             *([NOT_MEASURED + ", ".join(missing)] if missing else []),
              "set-resources:"]
     for r, res in resources.items():
         lines.append(f"  {r}:")
@@ -106,3 +110,11 @@ def updated_profile(profile_text: str, tail: str) -> str:
     """The profile with its generated part (from MARKER on) replaced by `tail`."""
     head = profile_text.split(MARKER, 1)[0].rstrip("\n")
     return f"{head}\n\n{tail}" if head else tail
+
+
+def not_measured(profile_text: str) -> list[str]:
+    """The rules the profile lists as not measured."""
+    for line in profile_text.splitlines():
+        if line.startswith(NOT_MEASURED):
+            return [r.strip() for r in line[len(NOT_MEASURED):].split(",")]
+    return []
