@@ -27,6 +27,7 @@ from lineage_tree import write as _write
     ("<1e-10", "0.09", False), ("<1e-10", "1e-12", True),
     ("0", "0", True), ("0", "0.1667", False),
     ("", "0.5", None), ("5", "", None),
+    ("none", "none", True), ("none", "0.5", False),            # a word (Table II: online correction)
 ])
 def test_agreement_rules(paper, ours, ok):
     assert ledger.agrees(ledger.parse(paper), ledger.parse(ours), 0.10) is ok

@@ -27,11 +27,14 @@ AGREES, DIFFERS, NO_PAPER, NOT_MEASURED = "agrees", "differs", "no paper value",
 
 
 def parse(v: str):
-    """A claims cell: None (empty), a float, a list of floats ('[a, b]' or '[a, b, c]'), or an
-    inequality ('<1e-10' -> ('<', 1e-10))."""
+    """A claims cell: None (empty), a float, a list of floats ('[a, b]' or '[a, b, c]'), an
+    inequality ('<1e-10' -> ('<', 1e-10)), or a word (Table II's online correction "none"), which
+    agrees only with the same word."""
     v = (v or "").strip()
     if not v:
         return None
+    if re.fullmatch(r"[A-Za-z][A-Za-z ]*", v) and v.lower() not in ("nan", "inf", "infinity"):
+        return v.lower()
     m = re.fullmatch(r"([<>]=?)\s*(\S+)", v)
     if m:
         return (m.group(1), float(m.group(2)))
@@ -55,6 +58,8 @@ def agrees(paper, ours, tol: float) -> bool | None:
     - inequality: every value of ours satisfies it."""
     if paper is None or ours is None:
         return None
+    if isinstance(paper, str) or isinstance(ours, str):
+        return paper == ours
     vals = ours if isinstance(ours, list) else [ours]
     if any(math.isnan(x) for x in vals):
         return None
