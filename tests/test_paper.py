@@ -68,6 +68,12 @@ def test_table1_rows_counts_and_verdicts(tmp_path):
     assert rows["dynamics sealed"]["n"] == 1 and rows["evaluation targets"]["n"] == 16
     assert all(r["verdict"] == "proved (DAG and records)" for r in rows.values())
     assert table1.rows(_sep(), tmp_path, simulated=False)[0]["domain"] == "rig recordings"
+    # a variant's target set is named by its folder; the deployment trials by their own index
+    assert table1.target_name("results/robustness/uniform/targets_training.parquet") == "uniform training targets"
+    assert table1.target_name("results/policy/targets_evaluation.parquet") == "evaluation targets"
+    _write(tmp_path, "raw_data/deployment/index.csv", b"group_id\ndep_0001\ndep_0002\n")
+    rows = {r["evidence"]: r for r in table1.rows(_sep(), tmp_path)}
+    assert rows["deployment"]["n"] == 2
 
 
 def test_table1_says_not_proved_when_a_leak_is_injected(tmp_path):

@@ -14,7 +14,7 @@ import csv
 from pathlib import Path
 
 from ..lineage import policy as P
-from ..lineage.groups import load_groups
+from ..lineage.groups import deployment_dir, load_groups
 from . import html
 
 COLUMNS = ("evidence", "domain", "n", "use", "separation", "verdict")
@@ -29,6 +29,13 @@ def _verdict(proofs: list[dict]) -> str:
         return "not proved: the separation check failed (see results/lineage/separation.json)"
     how = " and ".join(k for k in ("dag", "records") if all(p[k] for p in proofs))
     return f"proved ({how.replace('dag', 'DAG')})" if how else "not proved: no check ran"
+
+
+def target_name(path: str) -> str:
+    """A target file's row name: its set, after the folders below its stage that name a variant
+    (results/robustness/uniform/targets_training.parquet -> "uniform training targets")."""
+    parts = Path(path).parts
+    return " ".join([*parts[2:-1], Path(path).stem.removeprefix("targets_"), "targets"])
 
 
 def rows(sep: dict, root=".", simulated: bool = True) -> list[dict]:
@@ -68,12 +75,17 @@ def rows(sep: dict, root=".", simulated: bool = True) -> list[dict]:
     for es in order:
         if es not in P.POLICY:  # an evidence set no policy row names: nothing was proved for it
             row(es, domain, by_set[es], [], "named by no policy entry")
+    # the deployment trials: recorded after export into their own index (docs/deployment.md)
+    dep = Path(root) / deployment_dir(sep.get("raw_dir", "raw_data")) / "index.csv"
+    if dep.exists() and "deployment" in P.POLICY:
+        with open(dep, newline="") as f:
+            n = sum(1 for _ in csv.DictReader(f))
+        row("deployment", domain, n, [proofs.get("deployment", missing)], P.POLICY["deployment"].rule)
     sizes = sep.get("checked", {}).get("target_sizes", {})
     for f in P.TARGET_FILES:
         if f in sizes:
             p = proofs.get(f, missing)
-            row(Path(f).stem.removeprefix("targets_") + " targets", "simulation", sizes[f], [p],
-                P.POLICY[f].rule if f in P.POLICY else p["rule"])
+            row(target_name(f), "simulation", sizes[f], [p], P.POLICY[f].rule if f in P.POLICY else p["rule"])
     return out
 
 
