@@ -83,6 +83,8 @@ rule table_evidence:
         separation="results/lineage/separation.json",
         index=raw_index(),
         split="results/splits/split.csv",
+        # the deployment trials' own index (recorded after export): their row's n
+        deployment_index=f"{DEPLOY_RAW}/index.csv",
         static="report/table1_evidence.rst",
         code=imports("table_evidence"),
     output:
