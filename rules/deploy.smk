@@ -91,6 +91,11 @@ rule deploy_table:
         csv="results/tables/table2_deployment.csv",
         md="results/tables/table2_deployment.md",
         tex="results/tables/table2_deployment.tex",
+        html=report(
+            "results/tables/table2_deployment.html",
+            caption="../report/table2_deployment.rst",
+            category=category("table2_deployment"),
+        ),
     log:
         "logs/deployment/table.log",
     conda:

@@ -8,6 +8,7 @@ import pandas as pd
 
 from embodied_snap.characterize import deployment as D
 from embodied_snap.lineage.records import tracked
+from embodied_snap.paper import html
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -29,4 +30,7 @@ with tracked(snakemake):
     t2.to_csv(O.csv, index=False, lineterminator="\n")
     open(O.md, "w").write(D.markdown(t2))
     open(O.tex, "w").write(D.latex(t2))
+    open(O.html, "w").write(html.table("Table II: deployment of the frozen shared policy",  # the report's view
+                                       f"{len(trials)} trials recorded, {len(aborted['aborted'])} aborted or rejected.",
+                                       list(t2.columns), t2.to_dict("records")))
     pd.DataFrame(D.claims(s, man, I.reference)).to_csv(O.claims, index=False, lineterminator="\n")
