@@ -45,7 +45,12 @@ PRODUCTS = [
     *claims_tables(),
     "results/tables/table1_evidence.csv",
     "results/tables/claims.csv",
-    *(f"results/tables/table2_deployment.{ext}" for ext in ("csv", "md", "tex")),
+    *(
+        f"results/tables/table2_deployment.{ext}"
+        for ext in ("csv", "md", "tex")
+        if DEPLOYED
+    ),
+    "results/deployment/manifest.json",
     *TWIN_REPORTS,
 ]
 

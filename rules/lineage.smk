@@ -17,8 +17,8 @@ rule check_separation:
         # the claims tables come after every model, policy and target set: all records exist
         claims=claims_tables,
         # the deployment recordings and the manifest they ran: nothing upstream changed after export
-        deployment_index=f"{DEPLOY_RAW}/index.csv",
-        deployment_groups=f"{DEPLOY_RAW}/groups",
+        deployment_index=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
+        deployment_groups=[f"{DEPLOY_RAW}/groups"] if DEPLOYED else [],
         deployment_manifest=f"{DEPLOY}/manifest.json",
         manifest_inputs=MANIFEST_FILES,
         code=imports("check_separation"),

@@ -9,7 +9,7 @@ FIGURES = [
     "fig4_gates",
     "fig5_benchmark",
     "fig6_ablation",
-    "fig7_deployment",
+    *(["fig7_deployment"] if DEPLOYED else []),
 ]
 
 
@@ -84,7 +84,7 @@ rule table_evidence:
         index=raw_index(),
         split="results/splits/split.csv",
         # the deployment trials' own index (recorded after export): their row's n
-        deployment_index=f"{DEPLOY_RAW}/index.csv",
+        deployment_index=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
         static="report/table1_evidence.rst",
         code=imports("table_evidence"),
     output:
