@@ -17,7 +17,7 @@ from embodied_snap.lineage.audit import audit
 from embodied_snap.lineage.checks import check
 from embodied_snap.paper import crate, table1
 
-from test_workflow import BIN, run, snakemake
+from test_workflow import BIN, run, sealed_group_in_train, snakemake
 
 pytestmark = pytest.mark.slow
 
@@ -58,17 +58,9 @@ def test_fig1_and_the_tables_are_built(wf):
 
 
 def test_table1_says_not_proved_when_a_leak_is_injected(wf):
-    split = wf / "results/splits/split.csv"
-    keep = split.read_bytes()
-    df = pd.read_csv(split)
-    sealed = df[df.role == "sealed"].group_id.iloc[0]
-    df.loc[df.group_id == sealed, "role"] = "train"
-    df.to_csv(split, index=False)
-    try:
+    with sealed_group_in_train(wf) as sealed:
         res = check(wf, static=False)
         rows = {r["evidence"]: r for r in table1.rows(res, wf)}
-    finally:
-        split.write_bytes(keep)
     assert not res["ok"]
     assert rows["dynamics sealed"]["verdict"].startswith("not proved") and sealed in rows["dynamics sealed"]["verdict"]
     assert rows["servo_calibration"]["verdict"] == "proved (records)"

@@ -12,6 +12,7 @@ import os
 import re
 import subprocess
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 import pandas as pd
@@ -217,7 +218,10 @@ def test_an_undeclared_read_of_sealed_windows_fails_the_job(wf):
     assert dry_jobs(wf, "all") == []
 
 
-def test_injected_leak_is_caught(wf):
+@contextmanager
+def sealed_group_in_train(wf):
+    """An injected leak: the first sealed group of the split moved to train (yields its id); the
+    split's bytes are restored afterwards."""
     split = wf / "results/splits/split.csv"
     keep = split.read_bytes()
     df = pd.read_csv(split)
@@ -225,10 +229,15 @@ def test_injected_leak_is_caught(wf):
     df.loc[df.group_id == sealed, "role"] = "train"
     df.to_csv(split, index=False)
     try:
-        r = run([str(BIN / "esnap"), "check-separation", "--no-static"], wf, check=False)
-        assert r.returncode == 1 and sealed in r.stdout
+        yield sealed
     finally:
         split.write_bytes(keep)
+
+
+def test_injected_leak_is_caught(wf):
+    with sealed_group_in_train(wf) as sealed:
+        r = run([str(BIN / "esnap"), "check-separation", "--no-static"], wf, check=False)
+        assert r.returncode == 1 and sealed in r.stdout
 
 
 def test_broken_recording_stops_with_one_line_and_touches_nothing(wf):
