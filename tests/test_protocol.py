@@ -80,8 +80,9 @@ def test_paper_values_only_feed_the_paper_column():
     only embodied_snap/reference.py reads it: no result is computed from a paper value."""
     readers = set()
     for smk in (REPO / "rules").glob("*.smk"):
-        for block in re.split(r"\n(?=(?:rule|checkpoint) )", smk.read_text()):
-            m = re.match(r"(?:rule|checkpoint) (\w+):", block)
+        # rules may sit indented under `if TWIN:` and the like
+        for block in re.split(r"\n(?=[ \t]*(?:rule|checkpoint) )", smk.read_text()):
+            m = re.match(r"\s*(?:rule|checkpoint) (\w+):", block)
             if m and "reference/paper_values.yaml" in block:
                 readers.add(m.group(1))
     assert readers == {"table_characterize_claims", "table_dynamics_claims", "table_policy_claims",

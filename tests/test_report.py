@@ -90,7 +90,8 @@ def test_report_opens_in_chromium_with_every_figure_and_table(wf):
     res = check_report(html, wf / "results/report.png", show="results/figs/fig1_system.png")
     assert res["problems"] == []
     figs = {f"results/figs/{p.name}" for p in (wf / "results/figures").glob("*.png")}
-    tables = {"results/tables/table1_evidence.html", "results/tables/claims.html"}
+    tables = {f"results/tables/{p.name}" for p in (wf / "results/tables").glob("*.html")}
+    assert {"results/tables/table1_evidence.html", "results/tables/claims.html"} <= tables
     assert set(res["results"]) == figs | tables
     assert all(v.startswith(("image", "table")) for v in res["results"].values())
     assert (wf / "results/report.png").stat().st_size > 10_000
