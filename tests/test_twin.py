@@ -281,3 +281,17 @@ def test_ramped_release_latches_when_fast_and_is_dragged_when_slow():
         out[ramp] = (tr.events["latch_on"] is not None, np.convolve(v, np.ones(8) / 8, "same").max())
     assert out[1.0][0] and out[1.0][1] > PROTO.thresholds.attach_speed_mps
     assert not out[6.0][0] and out[6.0][1] < PROTO.thresholds.attach_speed_mps
+
+
+def test_short_delay_snaps_reach_the_face_too_slowly_to_seal():
+    """Paper III-B: tau <= 0.30 s gives no attachment, tau >= 0.45 s does. Two sweep trials of the
+    paper budget (config seed): at tau 0.30 s the cup meets the face at ~1.0 m/s and bounces; at
+    0.45 s it arrives at ~1.8 m/s and seals."""
+    from embodied_snap.twin.acquire import simulate_group
+
+    out = {}
+    for gid, session in (("dly_0024", "s12"), ("dly_0003", "s03")):
+        row = dict(group_id=gid, evidence_set="delay_sweep", category="sweep", session=session)
+        meta, _, _ = simulate_group(row, SEED, PROTO, DT, HOLD)
+        out[meta["program"]["tau"]] = meta["labels"]["attached"]
+    assert out == {0.30: False, 0.45: True}
