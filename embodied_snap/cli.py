@@ -190,6 +190,8 @@ def _target(a, man_path) -> list[float]:
     if a.target_from_mocap:
         with open(a.target_from_mocap) as f:  # the mocap system's export: {"target_m": [x, y, z]} in the base frame
             return [float(x) for x in json.load(f)["target_m"]]
+    if a.placement is None:
+        raise SystemExit("error: give --target, --target-from-mocap or --placement")
     with open(man_path) as f:
         return json.load(f)["placements"][a.placement - 1]["target_m"]
 
@@ -206,12 +208,38 @@ def cmd_deploy(a) -> int:
         ask = lambda: input("execute this trial on the arm? [y/N] ").strip().lower() == "y"  # noqa: E731
     try:
         r = run(a.manifest, a.port, _target(a, a.manifest), baud=a.baud, out=a.out, group_id=a.group_id,
-                dry_run=a.dry_run, confirm=ask)
+                placement=a.placement, dry_run=a.dry_run, confirm=ask)
     except DeployError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     if not a.dry_run:
         print(f"trial complete: {len(r['log'])} cycles, torque off" + (f", written to {a.out}" if a.out else ""))
+    return 0
+
+
+def cmd_deploy_index(a) -> int:
+    """The deployment index of trials recorded in the lab: each group folder that passes the gate
+    enters `index.csv`; aborted and rejected trials go to `aborted.json` with their cause."""
+    from .deploy import trials as T
+    from .validate import Limits
+
+    cfg = _config(a.config, None)
+    raw = Path(a.raw or Path(cfg["raw_data"]["dir"]) / "deployment")
+    found = T.lab_trials(raw)
+    if not found:
+        print(f"error: {raw}: no trial (no groups/*/meta.json, no aborted/*.json; record with esnap deploy --out)",
+              file=sys.stderr)
+        return 1
+    rows, aborted = T.gate(raw, found, Limits.from_config(cfg))
+    planned = a.planned or len(found)
+    if planned < len(found):
+        print(f"error: --planned {planned}: {len(found)} trials found", file=sys.stderr)
+        return 1
+    T.write(rows, aborted, planned, raw / "index.csv", raw / "aborted.json")
+    for r in aborted:
+        print(f"{r['group_id']}: not indexed: {r['cause']}")
+    print(f"{len(rows)} of {planned} planned trials indexed in {raw / 'index.csv'}; "
+          f"{len(aborted)} listed in {raw / 'aborted.json'}")
     return 0
 
 
@@ -315,15 +343,23 @@ def main(argv: list[str] | None = None) -> int:
     d.add_argument("--manifest", default="results/deployment/manifest.json")
     d.add_argument("--port", help="serial port of the servo bus, e.g. /dev/ttyUSB0")
     d.add_argument("--baud", type=int, help="default: the manifest's (1000000)")
-    tg = d.add_mutually_exclusive_group(required=True)
+    tg = d.add_mutually_exclusive_group()
     tg.add_argument("--target", help="x,y,z of the target in the base frame (m)")
     tg.add_argument("--target-from-mocap", help="JSON file {target_m: [x, y, z]} exported by the mocap system")
-    tg.add_argument("--placement", type=int, help="one of the manifest's placements (1-based)")
+    d.add_argument("--placement", type=int,
+                   help="which of the manifest's placements (1-based) the block stands at: recorded for Table II, "
+                        "and the target unless --target or --target-from-mocap gives the measured one")
     d.add_argument("--out", help="recording tree to write the trial into (groups/<id>/, aborted/)")
     d.add_argument("--group-id", default="dep_0001")
     d.add_argument("--dry-run", action="store_true", help="print the commands and goal schedule, open no port")
     d.add_argument("--yes", action="store_true", help="do not ask before moving the arm")
     d.set_defaults(fn=cmd_deploy)
+
+    di = sub.add_parser("deploy-index", help="index the deployment trials recorded in the lab (Table II, Fig. 7)")
+    di.add_argument("--raw", help="the deployment recording tree (default: <raw_data.dir>/deployment)")
+    di.add_argument("--config", default="config.yaml", help="the workflow's config (its gate and raw_data.dir)")
+    di.add_argument("--planned", type=int, help="trials planned (default: those found); Table II's denominator")
+    di.set_defaults(fn=cmd_deploy_index)
 
     cl = sub.add_parser("claims", help="the claims ledger: every paper number beside ours, by section and status")
     cl.add_argument("--section", action="append", help="only this paper section, e.g. III-B (repeatable)")

@@ -472,3 +472,34 @@ def test_no_placement_is_refused_by_its_own_manifest():
     pl = MF.placements(ws, (0.5, 0.7), 91, 40, box)
     g = geometry.features(np.array([p["target_m"] for p in pl]), np.array(ws["hanging_axis"]))
     assert np.all((g >= box["lo"]) & (g <= box["hi"]))
+
+
+def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
+    """Lab trials (docs/deployment.md): `esnap deploy-index` puts a complete trial that passes the
+    gate into index.csv, and lists an abort record and a trial without the operator's labels in
+    aborted.json with their cause."""
+    import shutil
+
+    import pandas as pd
+
+    from embodied_snap.cli import main
+    from embodied_snap.twin.deployment import run_trial
+
+    raw = tmp_path / "deployment"
+    row = run_trial(man_path, 2, 1, raw, seed=1, n_sessions=12, dt=0.001, speed_mps=1.0)
+    assert "cause" not in row, row
+    gid = row["group_id"]
+    shutil.copytree(raw / "groups" / gid, raw / "groups" / "dep_0090")
+    meta_path = raw / "groups/dep_0090/meta.json"
+    meta = json.loads(meta_path.read_text())
+    meta["group_id"] = "dep_0090"
+    del meta["labels"]["retrieved"]  # the operator did not label it
+    meta_path.write_text(json.dumps(meta))
+    (raw / "aborted").mkdir(exist_ok=True)
+    (raw / "aborted/dep_0091.json").write_text(json.dumps(dict(group_id="dep_0091", cause="timeout: no reply")))
+    assert main(["deploy-index", "--raw", str(raw), "--config", str(ROOT / "config.yaml"), "--planned", "4"]) == 0
+    assert pd.read_csv(raw / "index.csv").group_id.tolist() == [gid]
+    ab = json.loads((raw / "aborted.json").read_text())
+    causes = {a["group_id"]: a["cause"] for a in ab["aborted"]}
+    assert (ab["planned"], ab["recorded"]) == (4, 1) and causes["dep_0091"] == "timeout: no reply"
+    assert "labels lack retrieved" in causes["dep_0090"] and "meta.json: group dep_0090" in causes["dep_0090"]

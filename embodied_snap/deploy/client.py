@@ -279,9 +279,10 @@ def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
 
 
 def run(manifest, port: str | None, target, *, baud: int | None = None, out=None, group_id: str = "dep_0001",
-        meta_extra: dict | None = None, dry_run: bool = False, confirm=None, say=print) -> dict:
+        placement: int | None = None, dry_run: bool = False, confirm=None, say=print) -> dict:
     """One trial. Returns {commands, phases, goals, log, cause, torque_off}; raises DeployError
-    (one line) when it refuses or aborts, after torque went off."""
+    (one line) when it refuses or aborts, after torque went off. `placement`: which of the manifest's
+    placements the block stands at (recorded in the program; Table II counts placements)."""
     try:
         man = load(manifest)
         trial = C.plan(man, target)
@@ -333,6 +334,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
                     program=dict(kind="primitive", **{k: round(v, 4) for k, v in cmd.items()},
                                  target_m=[float(x) for x in np.ravel(target)]),
                     labels={k: v for k, v in trial["phases"].items() if k != "t_end"})
-        meta.update(meta_extra or {})
+        if placement is not None:
+            meta["program"]["placement"] = int(placement)
         write_trial(out_dir, meta, log)
     return result

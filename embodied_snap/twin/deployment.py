@@ -100,8 +100,6 @@ def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, sessio
                 base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
                 axis=[float(x) for x in axis / np.linalg.norm(axis)],
                 target=dict(size_m=[2 * h for h in BLOCK_HALF], face="+z"))
-    if "placement" in meta:
-        meta["program"]["placement"] = meta.pop("placement")
     meta["labels"].update(attached=bool(attached), retrieved=bool(retained),
                           snap_speed_event=bool(vtip.max() >= speed_mps))
     if attached:
@@ -164,7 +162,7 @@ def run_trial(man_path, placement: int, k: int, raw, seed: int, n_sessions: int,
     with rig_ as port:
         try:
             res = client.run(man_path, port, man["placements"][placement - 1]["target_m"], out=raw,
-                             group_id=rig_.gid, meta_extra=dict(placement=placement), say=say)
+                             group_id=rig_.gid, placement=placement, say=say)
         except client.DeployError as e:
             return dict(group_id=rig_.gid, cause=str(e))
         out = rig_.finish(float(res["log"][-1, 0]) + 0.005)

@@ -1,0 +1,79 @@
+"""The deployment index: which trials enter `<raw>/deployment/index.csv` and which are listed in
+`aborted.json` with their cause. One gate for both rigs: the simulated rig's rule hands it the
+trials it ran; in the lab, `esnap deploy-index` collects what `esnap deploy --out` left on disk.
+
+Runs on the analysis machine (pandas, the recording gate), never on the lab PC: `esnap deploy`
+does not import it.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from .. import rawformat as RF
+from ..io import parquet_rows
+from ..rawformat import RecordingError
+from ..validate import Limits, validate_group
+
+# What Table II reads of a trial besides its recordings: the operator's (or the simulated rig's)
+# observed labels (characterize.deployment.trial).
+LABELS = ("attached", "retrieved")
+
+
+def gate(raw, trials: list[dict], limits: Limits) -> tuple[list[dict], list[dict]]:
+    """trials: index rows of complete trials, or {group_id, cause} of aborted ones. Returns (rows
+    that pass the recording gate of docs/data.md, aborted + rejected with their cause)."""
+    rows, aborted = [], []
+    for r in trials:
+        if "cause" in r:
+            aborted.append(r)
+            continue
+        try:
+            validate_group(raw, r["group_id"], r, limits)
+            _labelled(raw, r["group_id"])
+        except RecordingError as e:  # kept out of the index with its reason, like an aborted trial
+            aborted.append(dict(group_id=r["group_id"], cause=f"rejected by the gate: {e}"))
+            continue
+        rows.append(r)
+    return rows, aborted
+
+
+def _labelled(raw, gid: str) -> None:
+    path = RF.group_paths(raw, gid)["meta"]
+    labels = RF.read_meta(path).get("labels", {})
+    missing = [k for k in LABELS if not isinstance(labels.get(k), bool)]
+    if missing:
+        raise RecordingError(path, gid, f"labels lack {', '.join(missing)}",
+                             f"every deployment trial is labelled {' and '.join(LABELS)} (true/false)")
+
+
+def write(rows: list[dict], aborted: list[dict], planned: int, index, aborted_path) -> None:
+    """index.csv and aborted.json (each written whole, through a temporary file)."""
+    RF.write_json(dict(planned=planned, recorded=len(rows), aborted=sorted(aborted, key=lambda a: a["group_id"])),
+                  aborted_path)
+    RF.write_index(rows, index)
+
+
+def lab_trials(raw) -> list[dict]:
+    """Every trial `esnap deploy --out raw` left: an index row per group folder (from its meta.json
+    and recordings; the gate then checks them) and the cause of each abort record."""
+    raw = Path(raw)
+    out = []
+    for meta_path in sorted(raw.glob("groups/*/meta.json")):
+        gid = meta_path.parent.name
+        try:
+            meta = RF.read_meta(meta_path)
+        except (OSError, ValueError):  # the gate names what is wrong with it
+            meta = {}
+        p = RF.group_paths(raw, gid)
+        out.append(dict(group_id=gid, evidence_set=meta.get("evidence_set"), category=meta.get("category"),
+                        session=meta.get("session"), recorded_at=meta.get("recorded_at"),
+                        **{f"n_{k}": parquet_rows(p[k]) for k in ("mocap", "servo") if p[k].exists()}))
+    recorded = {t["group_id"] for t in out}
+    for a in sorted(raw.glob("aborted/*.json")):
+        rec = json.loads(a.read_text())
+        if rec["group_id"] in recorded:  # aborted, then repeated under the same id: the repeat counts
+            continue
+        out.append(dict(group_id=rec["group_id"], cause=rec["cause"]))
+    return out
