@@ -25,7 +25,7 @@ with tracked(snakemake):
     pick = (ok if len(ok) else trials.sort_values("v_peak_mps", ascending=False)).iloc[0]
     raw = I.groups.rsplit("/groups", 1)[0]
     mc, _, meta = load.group(raw, pick.group_id)
-    times = F.moments(mc, meta)
+    times = F.moments(mc, meta, P.ee_m)
     top = F.recorded_frames(mc, meta, times, P.ee_m)
     sim, _ = for_job(I, P)
     bottom = F.predicted_frames(sim, meta, times, top[0]["points"], P.ee_m)
@@ -35,7 +35,8 @@ with tracked(snakemake):
     base = np.asarray(top[0]["points"][0])
     what = "retrieved" if pick.retrieved else "attached" if pick.attached else "no attachment in this run"
     print(f"trial {pick.group_id} ({what}); moments {times}", file=sys.stderr)
-    F.plot(F.render(top, base, bearing), F.render(bottom, base, bearing),
+    axis0 = np.asarray(meta["axis"], float)  # the hanging axis: where the arm leaves its base
+    F.plot(F.render(top, base, bearing, axis0), F.render(bottom, base, bearing, axis0),
            [f"{k} ({times[k]:.2f} s)" for k in F.MOMENTS],
            f"{pick.group_id}, placement {int(pick.placement)}: {what}; peak tip speed {pick.v_peak_mps:.2f} m/s",
            snakemake.output.pdf, snakemake.output.png)
