@@ -15,9 +15,11 @@ def test_arc_is_a_circle_tangent_at_its_start_through_its_end():
     np.testing.assert_allclose(pts[-1], b, atol=1e-12)
     np.testing.assert_allclose(np.linalg.norm(pts - [0.3, 0.0, 0.0], axis=1), 0.3, atol=1e-12)
     np.testing.assert_allclose(t_end, [1.0, 0.0, 0.0], atol=1e-12)
-    np.testing.assert_allclose((pts[1] - pts[0]) / np.linalg.norm(pts[1] - pts[0]) @ t, 1.0, atol=1e-2)  # half a step off
+    first = (pts[1] - pts[0]) / np.linalg.norm(pts[1] - pts[0])
+    assert first @ t == pytest.approx(1.0, abs=1e-2)  # its chord is half a step off the tangent
     straight, t2 = F.arc(a, t, np.array([0.0, -0.5, 0.0]))
-    np.testing.assert_allclose(straight[:, 0], 0.0) and np.testing.assert_allclose(t2, t)
+    np.testing.assert_allclose(straight[:, 0], 0.0)
+    np.testing.assert_allclose(t2, t)
     # sections chain: each leaves along the one before
     segs = F.arm_curve(np.array([[0, 0, 0], [0.1, -0.25, 0], [0.3, -0.35, 0], [0.4, -0.3, 0.0]]), t)
     for s, nxt in zip(segs[:-1], segs[1:]):
