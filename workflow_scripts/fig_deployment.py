@@ -21,11 +21,21 @@ with tracked(snakemake):
     if trials.empty:  # every trial aborted or was rejected: say so in the figure, do not invent one
         F.empty(snakemake.output.pdf, snakemake.output.png)
         sys.exit(0)
-    ok = trials[trials.retrieved] if trials.retrieved.any() else trials[trials.attached]
-    pick = (ok if len(ok) else trials.sort_values("v_peak_mps", ascending=False)).iloc[0]
+    # the first retrieved trial, else attached, else the fastest, whose five moments are in order
+    order = pd.concat([trials[trials.retrieved], trials[trials.attached & ~trials.retrieved],
+                       trials[~trials.attached].sort_values("v_peak_mps", ascending=False)])
     raw = I.groups.rsplit("/groups", 1)[0]
-    mc, _, meta = load.group(raw, pick.group_id)
-    times = F.moments(mc, meta, P.ee_m)
+    for _, pick in order.iterrows():
+        mc, _, meta = load.group(raw, pick.group_id)
+        try:
+            times = F.moments(mc, meta, P.ee_m)
+            break
+        except ValueError as e:  # e.g. the cup never came closer to the block after the release
+            print(f"not drawn: {e}", file=sys.stderr)
+    else:
+        F.empty(snakemake.output.pdf, snakemake.output.png,
+                "no trial with its five moments in order (logs/fig_deployment.log)")
+        sys.exit(0)
     top = F.recorded_frames(mc, meta, times, P.ee_m)
     sim, _ = for_job(I, P)
     bottom = F.predicted_frames(sim, meta, times, top[0]["points"], P.ee_m)

@@ -168,6 +168,8 @@ def moments(mc, meta: dict, ee_m: float) -> dict:
     t_att = lab.get("t_attach")
     after = t >= lab["t_s1"]
     d_after = np.where(after & (t <= (t_att if t_att is not None else lab["t_s1"] + 1.0)), d, np.nan)
+    if not np.isfinite(d_after).any():
+        raise ValueError(f"group {meta['group_id']}: cup or block untracked after the S1 release")
     k_reach = int(np.nanargmin(d_after))
     k_rel = int(np.flatnonzero(after & np.isfinite(d))[0])
     half = 0.5 * (d[k_rel] + d[k_reach])
@@ -228,12 +230,12 @@ def predicted_frames(sim, meta: dict, times: dict, hanging: np.ndarray, ee_m: fl
     return frames
 
 
-def empty(pdf: str, png: str) -> None:
-    """Fig. 7 when no trial completed (results/deployment/summary.json says why)."""
+def empty(pdf: str, png: str, why: str = "no complete deployment trial (raw_data/deployment/aborted.json)") -> None:
+    """Fig. 7 when there is no trial to draw, saying why."""
     style.setup()
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(style.TEXT_WIDTH_IN, 1.0))
     ax.axis("off")
-    ax.text(0.5, 0.5, "no complete deployment trial (raw_data/deployment/aborted.json)", ha="center")
+    ax.text(0.5, 0.5, why, ha="center")
     style.save(fig, pdf, png)
