@@ -143,7 +143,7 @@ def plot(top: list[np.ndarray], bottom: list[np.ndarray], titles: list[str], cap
             ax.set_xticks([])
             ax.set_yticks([])
             for s in ax.spines.values():
-                s.set_color("0.85")  # a light frame per panel
+                s.set(visible=True, color="0.85")  # a light frame per panel
         axes[0, j].set_title(titles[j])
     axes[0, 0].set_ylabel("rig (recorded)")
     axes[1, 0].set_ylabel("dynamics model")
