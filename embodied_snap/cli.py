@@ -221,10 +221,11 @@ def cmd_deploy_index(a) -> int:
     """The deployment index of trials recorded in the lab: each group folder that passes the gate
     enters `index.csv`; aborted and rejected trials go to `aborted.json` with their cause."""
     from .deploy import trials as T
+    from .lineage.groups import deployment_dir
     from .validate import Limits
 
     cfg = _config(a.config, None)
-    raw = Path(a.raw or Path(cfg["raw_data"]["dir"]) / "deployment")
+    raw = Path(a.raw or deployment_dir(cfg["raw_data"]["dir"]))
     found = T.lab_trials(raw)
     if not found:
         print(f"error: {raw}: no trial (no groups/*/meta.json, no aborted/*.json; record with esnap deploy --out)",

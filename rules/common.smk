@@ -12,6 +12,7 @@ from pathlib import Path
 from embodied_snap import protocol
 from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
+from embodied_snap.lineage.groups import deployment_dir
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.paper.sections import category as category_of
 from embodied_snap.plan import PlanError, load_plan

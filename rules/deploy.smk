@@ -4,7 +4,7 @@
 # The deployment recordings feed only Table II and Fig. 7 (esnap check-separation).
 
 DEPLOY = "results/deployment"
-DEPLOY_RAW = f"{RAW}/deployment"
+DEPLOY_RAW = deployment_dir(RAW)
 # Trials exist, or the simulated rig records them: Table II and Fig. 7 are built. On a real rig they
 # are recorded in the lab after export (`esnap deploy`, docs/deployment.md); until then the workflow
 # builds the manifest and stops there.
