@@ -77,7 +77,7 @@ class Limits:
             "dynamics/target": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
             "dynamics/sealed": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
             "held_base": ["base_event_t", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "deployment": [],
+            "deployment": ["attached", "retrieved"],
         }
     )
     program: dict = field(

@@ -506,4 +506,4 @@ def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
     ab = json.loads((raw / "aborted.json").read_text())
     causes = {a["group_id"]: a["cause"] for a in ab["aborted"]}
     assert (ab["planned"], ab["recorded"]) == (4, 1) and causes["dep_0091"] == "timeout: no reply"
-    assert "labels lack retrieved" in causes["dep_0090"] and "meta.json: group dep_0090" in causes["dep_0090"]
+    assert "labels has no 'retrieved'" in causes["dep_0090"] and "meta.json: group dep_0090" in causes["dep_0090"]

@@ -16,10 +16,6 @@ from ..io import parquet_rows
 from ..rawformat import RecordingError
 from ..validate import Limits, validate_group
 
-# What Table II reads of a trial besides its recordings: the operator's (or the simulated rig's)
-# observed labels (characterize.deployment.trial).
-LABELS = ("attached", "retrieved")
-
 
 def gate(raw, trials: list[dict], limits: Limits) -> tuple[list[dict], list[dict]]:
     """trials: index rows of complete trials, or {group_id, cause} of aborted ones. Returns (rows
@@ -30,22 +26,12 @@ def gate(raw, trials: list[dict], limits: Limits) -> tuple[list[dict], list[dict
             aborted.append(r)
             continue
         try:
-            validate_group(raw, r["group_id"], r, limits)
-            _labelled(raw, r["group_id"])
+            validate_group(raw, r["group_id"], r, limits)  # with the labels Table II reads (gate.labels)
         except RecordingError as e:  # kept out of the index with its reason, like an aborted trial
             aborted.append(dict(group_id=r["group_id"], cause=f"rejected by the gate: {e}"))
             continue
         rows.append(r)
     return rows, aborted
-
-
-def _labelled(raw, gid: str) -> None:
-    path = RF.group_paths(raw, gid)["meta"]
-    labels = RF.read_meta(path).get("labels", {})
-    missing = [k for k in LABELS if not isinstance(labels.get(k), bool)]
-    if missing:
-        raise RecordingError(path, gid, f"labels lack {', '.join(missing)}",
-                             f"every deployment trial is labelled {' and '.join(LABELS)} (true/false)")
 
 
 def write(rows: list[dict], aborted: list[dict], planned: int, index, aborted_path) -> None:
