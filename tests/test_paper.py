@@ -28,6 +28,8 @@ from lineage_tree import write as _write
     ("0", "0", True), ("0", "0.1667", False),
     ("", "0.5", None), ("5", "", None),
     ("none", "none", True), ("none", "0.5", False),            # a word (Table II: online correction)
+    ("none", "no complete trial", False),
+    ("[1.19, 1.44]", "[, ]", None),                            # an empty range is not measured
 ])
 def test_agreement_rules(paper, ours, ok):
     assert ledger.agrees(ledger.parse(paper), ledger.parse(ours), 0.10) is ok
@@ -142,3 +144,14 @@ def test_crate_lists_every_result_once_and_fails_when_one_changes(tmp_path):
     (tmp_path / fig).write_bytes(b"another png")
     bad = crate.verify(tmp_path)
     assert len(bad) == 1 and bad[0].startswith(f"{fig}: sha256 differs")
+
+
+def test_a_deployment_with_every_trial_aborted_still_gives_a_ledger_row_per_claim():
+    """Under heavy load the real-time trials can all fail the gate: the claims say so, the ledger
+    parses them (not measured, or a differing word), and the run goes on to its report."""
+    from embodied_snap.characterize import deployment as D
+    s = D.summarize(D.pd.DataFrame(), 3, 3, 110.0, 1.0, aborted=3)
+    man = {"placements": [{"distance_m": 0.62, "bearing_deg": 0.0}, {"distance_m": 0.69, "bearing_deg": 91.0}]}
+    rows = D.claims(s, man)
+    assert rows and all(ledger.agrees(ledger.parse(r["paper"]), ledger.parse(r["ours"]), 0.1) is not True
+                        for r in rows if r["claim_id"] in ("peak_speed_iqr_mps", "online_correction"))

@@ -59,7 +59,7 @@ def summarize(df: pd.DataFrame, n_planned: int, n_placements: int, bend_deg: flo
         peak_speed_max_mps=float(np.max(v)) if len(v) else np.nan,
         retrieved=int(df.retrieved.sum()), attached=int(df.attached.sum()),
         placements_retrieved=int(df[df.retrieved].placement.nunique()),
-        online_correction=("n/a (no complete trial)" if df.empty else "none" if bool(df.open_loop.all())
+        online_correction=("no complete trial" if df.empty else "none" if bool(df.open_loop.all())
                            else "goals differ from the manifest's schedule"),
     )
 

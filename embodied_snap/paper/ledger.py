@@ -38,8 +38,8 @@ def parse(v: str):
     m = re.fullmatch(r"([<>]=?)\s*(\S+)", v)
     if m:
         return (m.group(1), float(m.group(2)))
-    if v.startswith("["):
-        return [float(x) for x in v.strip("[]").split(",") if x.strip()]
+    if v.startswith("["):  # an empty range ('[, ]': no value to take it from) is not measured
+        return [float(x) for x in v.strip("[]").split(",") if x.strip()] or None
     return float(v)
 
 
