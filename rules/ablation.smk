@@ -5,9 +5,6 @@
 ABL = "results/ablation"
 ACFG = config["ablation"]
 ABUDGET = BUDGET["ablation"]
-SHARED_RUNS = [
-    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
-]
 # The trigger thresholds; the grid step, anchor and timing set are the simulator's (the protocol's).
 TRIGGERS = dict(
     s1_rate_deg_s=ACFG["s1_rate_deg_s"], tip_speed_mps=ACFG["tip_speed_mps"]

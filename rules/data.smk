@@ -14,6 +14,7 @@ rule validate_shard:
         "logs/validate_shard/{shard}.log",
     benchmark:
         "benchmarks/validate_shard/{shard}.tsv"
+    priority: before_training
     conda:
         "../envs/esnap.yaml"
     params:
@@ -71,6 +72,7 @@ rule resample_shard:
         "logs/resample_shard/{shard}.log",
     benchmark:
         "benchmarks/resample_shard/{shard}.tsv"
+    priority: before_training
     conda:
         "../envs/esnap.yaml"
     params:
@@ -93,6 +95,7 @@ rule validate_sealed:
         f"{RAW}/{sealed.RECORD}",
     log:
         "logs/validate_sealed.log",
+    priority: 1
     conda:
         "../envs/esnap.yaml"
     params:
@@ -113,6 +116,7 @@ rule split:
         "results/splits/split.csv",
     log:
         "logs/split.log",
+    priority: 1
     conda:
         "../envs/esnap.yaml"
     params:
@@ -139,6 +143,7 @@ rule windows:
         "logs/windows/{role}.log",
     benchmark:
         "benchmarks/windows/{role}.tsv"
+    priority: lambda wc: int(wc.role != "sealed")
     conda:
         "../envs/esnap.yaml"
     params:

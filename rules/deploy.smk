@@ -11,9 +11,6 @@ DEPLOY_RAW = deployment_dir(RAW)
 DEPLOYED = TWIN or Path(DEPLOY_RAW, "index.csv").exists()
 DCONF = config["deployment"]
 DBUDGET = BUDGET["deployment"]
-SHARED_RUNS = [
-    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
-]
 # Everything the manifest hashes: the separation proof re-hashes them (nothing changed after export).
 MANIFEST_INPUTS = dict(
     runs=SHARED_RUNS,

@@ -11,6 +11,10 @@ POLICY_RUNS_OF = [
 ]
 POLICY_RUNS = [f"{POL}/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF]
 POLICY_EVALS = [f"{POL}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
+# The shared architecture's runs: what the ablation and the deployment read, so searched first.
+SHARED_RUNS = [
+    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
+]
 SIMULATOR = dict(
     models=DMODELS,
     bank=f"{DYN}/hold_bank.npz",
@@ -92,6 +96,7 @@ rule policy_search:
         "logs/policy/search_{arch}_seed{seed}.log",
     benchmark:
         "benchmarks/policy/search_{arch}_seed{seed}.tsv"
+    priority: lambda wc: int(f"{POL}/runs/{wc.arch}_seed{wc.seed}.json" in SHARED_RUNS)
     conda:
         "../envs/esnap.yaml"
     threads: 1

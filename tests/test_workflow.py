@@ -105,6 +105,27 @@ def test_nothing_to_do_after_a_run(wf):
     assert dry_jobs(wf, "all") == []
 
 
+def test_what_the_gru_training_reads_is_scheduled_first(wf):
+    """Policy search, the ablation and the deployment wait on the GRU seeds, so the shards their
+    training reads (found here from the DAG) are validated before any other shard (the rules'
+    `priority`): in the fresh run, each such validation started no later than every other one.
+    They all become ready together (with index.csv, once every shard is recorded), so the order
+    is the scheduler's choice."""
+    sys.path.insert(0, str(REPO / "bench"))
+    from timeline import jobs
+
+    out = snakemake(wf, "-n", "--forceall", "results/dynamics/models/seed0.pt").stdout
+    upstream = set(re.findall(r"rule validate_shard:(?:\n\s+\S.*)*?\n\s+wildcards: shard=(\S+)", out))
+    assert upstream and all(s.startswith("dynamics") for s in upstream)
+    first = jobs(sorted((wf / ".snakemake/log").glob("*.snakemake.log"))[0])  # the fresh run's log
+    starts = {True: [], False: []}
+    for j in first:
+        if j["rule"] == "validate_shard":
+            starts[j["wildcards"].removeprefix("shard=") in upstream].append(j["start"])
+    assert starts[True] and starts[False]
+    assert max(starts[True]) <= min(starts[False]), starts
+
+
 def test_audit_of_train_windows_names_train_groups_only(wf):
     r = run([str(BIN / "esnap"), "audit", "results/splits/windows_train.npz", "--json"], wf)
     rep = json.loads(r.stdout)
