@@ -7,6 +7,7 @@ takes its column names from here.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import tempfile
@@ -105,13 +106,22 @@ class RecordingError(ValueError):
         return (type(self), (self.path, self.group_id, self.what, self.rule))
 
 
+@functools.lru_cache(maxsize=64)
+def _real(path: str) -> Path:
+    return Path(path).resolve()
+
+
 def group_dir(raw_dir: str | Path, group_id: str) -> Path:
     """A group's folder. Ids are names, not paths: whatever an id holds (`..`, `/etc`, a
     symlinked folder), the folder must resolve inside `<raw_dir>/groups`, or nothing is read."""
     root = Path(raw_dir) / "groups"
     d = root / str(group_id)
-    real = d.resolve()
-    if real.parent != root.resolve() or real.name != str(group_id):
+    real_root = _real(str(root))
+    gid = str(group_id)
+    # a plain name whose folder is not a link resolves under the real root; anything else in full
+    plain = gid not in ("", ".", "..") and "/" not in gid and os.sep not in gid and not d.is_symlink()
+    real = real_root / gid if plain else d.resolve()
+    if real.parent != real_root or real.name != gid:
         raise RecordingError(
             d, group_id, f"resolves to {real}, outside {root}", "group folder inside the raw directory"
         )

@@ -30,6 +30,7 @@ class Verdicts:
             h.update((Path(__file__).parent / name).read_bytes())
         self.version = h.hexdigest()
         self.passed: dict[str, str] = {}
+        self.seen: set[str] = set()  # passed in this process: one DAG build asks for a group many times
         if self.path and self.path.exists():
             try:
                 saved = json.loads(self.path.read_text())
@@ -49,12 +50,16 @@ class Verdicts:
         """Raise the gate's RecordingError for the first group that breaks a rule."""
         new = False
         for gid in group_ids:
+            if gid in self.seen:
+                continue
             key = self._key(gid)
             if key is not None and self.passed.get(gid) == key:
+                self.seen.add(gid)
                 continue
             validate_group(self.raw, gid, self.rows.get(gid), self.limits)
             if key is not None:
                 self.passed[gid], new = key, True
+                self.seen.add(gid)
         if new and self.path:
             write_json({"version": self.version, "passed": self.passed}, self.path)
 

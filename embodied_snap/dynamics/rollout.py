@@ -85,19 +85,21 @@ class Ensemble:
         out = xs.new_empty(S, horizon + 1, xs.shape[0], xs.shape[-1])  # step-major: each step one block
         for s, p in enumerate(self.params):
             self._seed(p, xs, us, out[s])
+        mean = out.mean(0)  # (horizon+1, B, 21): the seed means of whole contiguous rows, once
         out = out.transpose(1, 2)  # (S, B, horizon+1, 21)
         tip = out[..., TIP]
-        mean = tip.mean(0)
-        dis = (tip - mean).norm(dim=-1).mean(0)
+        # on the transposed view, as the rewards were first computed: the norm's sum depends on layout
+        dis = (tip - tip.mean(0)).norm(dim=-1).mean(0)
+        mean = mean.transpose(0, 1)
         res = {
             "tip": tip.reshape(S, *lead, horizon + 1, 3).cpu().numpy(),
-            "mean": mean.reshape(*lead, horizon + 1, 3).cpu().numpy(),
+            "mean": mean[..., TIP].reshape(*lead, horizon + 1, 3).cpu().numpy(),
             "disagreement": dis.reshape(*lead, horizon + 1).cpu().numpy(),
         }
         if states:
             res["states"] = out.reshape(S, *lead, horizon + 1, -1).cpu().numpy()
         if parts:
-            res["mean_parts"] = [out[..., sl].mean(0).reshape(*lead, horizon + 1, -1).cpu().numpy() for sl in parts]
+            res["mean_parts"] = [mean[..., sl].reshape(*lead, horizon + 1, -1).cpu().numpy() for sl in parts]
         return res
 
     def _seed(self, p: dict, xs, us, out) -> None:

@@ -25,6 +25,7 @@ EXEMPT = frozenset({PACKAGE, f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"}
 DAG_MODULE = f"{PACKAGE}.lineage.dag"
 
 
+@lru_cache(maxsize=None)  # the DAG build asks for the same modules once per rule
 def module_file(name: str, root: Path) -> Path | None:
     """The source file of package module `name` under root, or None if it is not one."""
     rel = Path(*name.split("."))
@@ -34,6 +35,7 @@ def module_file(name: str, root: Path) -> Path | None:
     return None
 
 
+@lru_cache(maxsize=None)
 def _is_package(name: str, root: Path) -> bool:
     return (root / Path(*name.split(".")) / "__init__.py").is_file()
 
