@@ -23,7 +23,6 @@ from .rawformat import (
     FORMAT_VERSION,
     GROUP_FILES,
     RecordingError,
-    group_dir,
     group_paths,
 )
 from .rawschema import (
@@ -34,8 +33,8 @@ from .rawschema import (
     check_servo,
     file_entry,
     index_schema,
+    load_recording,
     read_meta_checked,
-    read_recording,
     recording_rows,
     run_schema,
 )
@@ -51,6 +50,8 @@ __all__ = [
     "validate_shard",
 ]
 
+# Manifest names and group_paths' keys, in the manifest's order.
+_FILE_KEYS = [(name, name.split(".")[0]) for name in GROUP_FILES]
 _PROGRAM = ["kind", "bearing", "tau", "rho1", "rho2", "rho3"]
 
 
@@ -192,7 +193,7 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         )
     bodies = TRACKED_BODIES + (("target",) if has_target else ())
     for b in bodies:
-        ok = mocap[f"{b}_valid"].to_numpy()
+        ok = mocap[f"{b}_valid"].to_numpy()  # numpy per column: pandas' row selection costs more
         if b == "target":
             frac = float(ok.mean())
             if frac < lim.min_target_valid_fraction:
@@ -219,7 +220,7 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         vmax = lim.max_speed_mps.get(b)
         if vmax is None or ok.sum() < 2:
             continue
-        p = mocap.loc[ok, [f"{b}_x", f"{b}_y", f"{b}_z"]].to_numpy()
+        p = np.column_stack([mocap[f"{b}_{c}"].to_numpy()[ok] for c in "xyz"])
         tv = t[ok]
         d = np.linalg.norm(np.diff(p, axis=0), axis=1)
         v = d / np.diff(tv)
@@ -265,9 +266,10 @@ def validate_group(
     lim = limits or Limits()
     paths = group_paths(raw_dir, group_id)  # ids are names: the folder stays inside raw_dir
     meta = read_meta_checked(paths["meta"], group_id, index_row)
-    mocap = read_recording(paths["mocap"], group_id)
+    # Each parquet file is read once: the checked bytes are the hashed bytes.
+    mocap, mocap_bytes = load_recording(paths["mocap"], group_id)
     check_mocap(mocap, paths["mocap"], group_id)
-    servo = read_recording(paths["servo"], group_id)
+    servo, servo_bytes = load_recording(paths["servo"], group_id)
     check_servo(servo, paths["servo"], group_id)
     tm = mocap["t"].to_numpy()
     _check_meta(meta, paths["meta"], group_id, lim, (tm[0], tm[-1]))
@@ -296,13 +298,14 @@ def validate_group(
     _check_motion(
         mocap, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
     )
-    valid = mocap[[f"{b}_valid" for b in TRACKED_BODIES]].all(axis=1)
+    valid = np.logical_and.reduce([mocap[f"{b}_valid"].to_numpy() for b in TRACKED_BODIES])
+    data = {"mocap": mocap_bytes, "servo": servo_bytes}
     return {
         "group_id": group_id,
         "evidence_set": es,
         "category": cat,
         "session": meta["session"],
-        "files": {name: file_entry(group_dir(raw_dir, group_id) / name) for name in GROUP_FILES},
+        "files": {name: file_entry(paths[k], data.get(k)) for name, k in _FILE_KEYS},
         "n_mocap": int(len(mocap)),
         "n_servo": int(len(servo)),
         "duration_s": float(tm[-1] - tm[0]),
