@@ -287,14 +287,18 @@ def _mocap_passes(df: pd.DataFrame) -> bool:
 
 def _servo_passes(df: pd.DataFrame) -> bool:
     """Everything SERVO_SCHEMA checks (see _mocap_passes)."""
-    if list(df.columns) != servo_columns() or not _sorted_finite_t(df["t"].to_numpy(), SERVO_HZ, SERVO_RATE_TOL):
+    dtypes = list(df.dtypes)
+    if list(df.columns) != servo_columns() or dtypes[0] != np.float64:
         return False
-    for ticks, d in zip(_SERVO_TICKS, df.dtypes.iloc[1:]):
+    for ticks, d in zip(_SERVO_TICKS, dtypes[1:]):
         if not isinstance(d, np.dtype) or d.kind not in ("iu" if ticks else "iuf"):
             return False
+    a = df.to_numpy(dtype=np.float64)  # t is float64 already: its values are unchanged
+    if not _sorted_finite_t(a[:, 0], SERVO_HZ, SERVO_RATE_TOL):
+        return False
     # Ticks are integers far below 2**53, so as floats they compare exactly; currents must be
     # finite (the schema allows no NaN) and in range.
-    a = np.abs(df.iloc[:, 1:].to_numpy(dtype=np.float64))
+    a = np.abs(a[:, 1:])
     if not np.isfinite(a).all():
         return False
     return bool(a[:, _SERVO_TICKS].max() <= TICK_LIMIT and a[:, ~_SERVO_TICKS].max() <= CURRENT_LIMIT_MA)

@@ -180,8 +180,18 @@ def _grid_span(tm: np.ndarray, ts: np.ndarray, hz: float):
     return np.ceil(t0 * hz - 1e-6) / hz, np.floor(t1 * hz + 1e-6) / hz
 
 
-def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: bool, span) -> None:
-    t = mocap["t"].to_numpy()
+def _columns(mocap: pd.DataFrame) -> dict:
+    """A checked mocap table as numpy columns, in one conversion (pandas' per-column access costs
+    more than the checks). The schema made t and poses float64 and flags bool, so float64 holds
+    every value exactly; a flag is 1.0 or 0.0."""
+    if not mocap.columns.is_unique:
+        return {c: mocap[c].to_numpy() for c in mocap.columns}
+    a = mocap.to_numpy(dtype=np.float64)
+    return {c: (a[:, i] == 1.0 if c.endswith("_valid") else a[:, i]) for i, c in enumerate(mocap.columns)}
+
+
+def _check_motion(mocap: dict, path, gid: str, lim: Limits, has_target: bool, span) -> None:
+    t = mocap["t"]
     gap = float(np.diff(t).max())
     if gap > lim.max_mocap_gap_s + 1e-9:  # rows missing altogether: every body lost at once
         k = int(np.argmax(np.diff(t)))
@@ -193,7 +203,7 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         )
     bodies = TRACKED_BODIES + (("target",) if has_target else ())
     for b in bodies:
-        ok = mocap[f"{b}_valid"].to_numpy()  # numpy per column: pandas' row selection costs more
+        ok = mocap[f"{b}_valid"]
         if b == "target":
             frac = float(ok.mean())
             if frac < lim.min_target_valid_fraction:
@@ -220,7 +230,7 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         vmax = lim.max_speed_mps.get(b)
         if vmax is None or ok.sum() < 2:
             continue
-        p = np.column_stack([mocap[f"{b}_{c}"].to_numpy()[ok] for c in "xyz"])
+        p = np.column_stack([mocap[f"{b}_{c}"][ok] for c in "xyz"])
         tv = t[ok]
         d = np.linalg.norm(np.diff(p, axis=0), axis=1)
         v = d / np.diff(tv)
@@ -295,10 +305,11 @@ def validate_group(
             "target trials describe the target",
         )
     _check_servo(servo, mocap, paths["servo"], group_id, lim)
+    cols = _columns(mocap)
     _check_motion(
-        mocap, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
+        cols, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
     )
-    valid = np.logical_and.reduce([mocap[f"{b}_valid"].to_numpy() for b in TRACKED_BODIES])
+    valid = np.logical_and.reduce([cols[f"{b}_valid"] for b in TRACKED_BODIES])
     data = {"mocap": mocap_bytes, "servo": servo_bytes}
     return {
         "group_id": group_id,
