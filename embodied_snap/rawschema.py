@@ -18,7 +18,7 @@ import pandera.pandas as pa
 import pyarrow as pa_arrow
 from pandera.errors import SchemaError, SchemaErrorReason, SchemaErrors
 
-from .io import parquet_rows, read_parquet
+from .io import parquet_from_bytes, parquet_rows, read_parquet
 from .rawformat import (
     BODIES,
     CATEGORIES,
@@ -249,9 +249,8 @@ def run_schema(schema, df, path, group, noun="column"):
     raise RecordingError(path, group, what, rule) from None
 
 
-def _sorted_finite_t(df: pd.DataFrame, hz: float, tol: float) -> bool:
-    t = df["t"].to_numpy()
-    if df["t"].dtype != np.float64 or len(t) < 2 or not np.isfinite(t).all():
+def _sorted_finite_t(t: np.ndarray, hz: float, tol: float) -> bool:
+    if t.dtype != np.float64 or len(t) < 2 or not np.isfinite(t).all():
         return False
     dt = np.diff(t)
     return bool((dt > 0).all() and abs(np.median(dt) * hz - 1.0) <= tol)
@@ -262,40 +261,47 @@ def _within(a: np.ndarray, lim: float) -> bool:
     return a.size == 0 or bool(a.min() >= -lim and a.max() <= lim)
 
 
+_MOCAP_DTYPES = [np.dtype(bool) if c.endswith("_valid") else np.dtype(np.float64) for c in mocap_columns()]
+_SERVO_TICKS = np.array([not c.startswith("current_") for c in servo_columns()[1:]])
+# The fast path passes quaternions a hair inside the schema's tolerance: a norm at the very edge
+# is left to pandera, so float round-off in a differently computed norm cannot flip a verdict.
+_QUAT_FAST_TOL = QUAT_NORM_TOL * (1 - 1e-9)
+
+
 def _mocap_passes(df: pd.DataFrame) -> bool:
-    """Everything MOCAP_SCHEMA checks, in a few numpy passes; True only when the schema passes.
-    pandera then runs only on a frame this doubts, to name the first broken rule: a good
-    recording is checked several times faster."""
-    if list(df.columns) != mocap_columns() or not _sorted_finite_t(df, MOCAP_HZ, MOCAP_RATE_TOL):
+    """Everything MOCAP_SCHEMA checks, in a few numpy passes over all bodies at once; True only
+    when the schema passes. pandera then runs only on a frame this doubts, to name the first
+    broken rule: a good recording is checked many times faster."""
+    if list(df.columns) != mocap_columns() or list(df.dtypes) != _MOCAP_DTYPES:
         return False
-    for b in BODIES:
-        pose = df[[f"{b}_{f}" for f in POSE_FIELDS]]
-        if df[f"{b}_valid"].dtype != bool or any(d != np.float64 for d in pose.dtypes):
-            return False
-        a = pose.to_numpy()
-        if not _within(a[:, :3], MAX_ABS_POSITION_M):
-            return False
-        av = a[df[f"{b}_valid"].to_numpy()]
-        if not np.isfinite(av).all() or (np.abs(np.linalg.norm(av[:, 3:], axis=1) - 1) > QUAT_NORM_TOL).any():
-            return False
-    return True
+    a = df.to_numpy(dtype=np.float64)  # one pass; flags become exactly 0.0 and 1.0
+    if not _sorted_finite_t(a[:, 0], MOCAP_HZ, MOCAP_RATE_TOL):
+        return False
+    body = a[:, 1:].reshape(len(a), len(BODIES), len(POSE_FIELDS) + 1)  # pose fields, then valid
+    if not _within(body[:, :, :3], MAX_ABS_POSITION_M):
+        return False
+    pv = body[body[:, :, -1] == 1.0][:, :-1]  # every valid (sample, body): complete, unit quaternion
+    q = pv[:, 3:]
+    return bool(np.isfinite(pv).all() and (np.abs(np.sqrt((q * q).sum(axis=1)) - 1) <= _QUAT_FAST_TOL).all())
 
 
 def _servo_passes(df: pd.DataFrame) -> bool:
     """Everything SERVO_SCHEMA checks (see _mocap_passes)."""
-    if list(df.columns) != servo_columns() or not _sorted_finite_t(df, SERVO_HZ, SERVO_RATE_TOL):
+    dtypes = list(df.dtypes)
+    if list(df.columns) != servo_columns() or dtypes[0] != np.float64:
         return False
-    for c in df.columns[1:]:
-        d = df[c].dtype
-        ticks = not c.startswith("current_")
+    for ticks, d in zip(_SERVO_TICKS, dtypes[1:]):
         if not isinstance(d, np.dtype) or d.kind not in ("iu" if ticks else "iuf"):
             return False
-        a = df[c].to_numpy()
-        if not ticks and not np.isfinite(a).all():
-            return False
-        if not _within(a.astype(float), TICK_LIMIT if ticks else CURRENT_LIMIT_MA):
-            return False
-    return True
+    a = df.to_numpy(dtype=np.float64)  # t is float64 already: its values are unchanged
+    if not _sorted_finite_t(a[:, 0], SERVO_HZ, SERVO_RATE_TOL):
+        return False
+    # Ticks are integers far below 2**53, so as floats they compare exactly; currents must be
+    # finite (the schema allows no NaN) and in range.
+    a = np.abs(a[:, 1:])
+    if not np.isfinite(a).all():
+        return False
+    return bool(a[:, _SERVO_TICKS].max() <= TICK_LIMIT and a[:, ~_SERVO_TICKS].max() <= CURRENT_LIMIT_MA)
 
 
 def check_mocap(df: pd.DataFrame, path, gid: str) -> None:
@@ -320,11 +326,33 @@ def read_recording(path: Path, gid: str) -> pd.DataFrame:
         raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
 
 
+def load_recording(path: Path, gid: str) -> tuple[pd.DataFrame, bytes]:
+    """The recording and its bytes, read once: the manifest hashes the bytes that were checked."""
+    if not path.exists():
+        raise RecordingError(path, gid, "missing", "group has its three files")
+    try:
+        data = path.read_bytes()
+        return parquet_from_bytes(data), data
+    except Exception:  # noqa: BLE001 -- re-read below, so the error is read_recording's own line
+        pass
+    return read_recording(path, gid), path.read_bytes()
+
+
 def recording_rows(path: Path, gid: str) -> int:
     try:
         return parquet_rows(path)  # footer only: fast on a thousand groups
     except (OSError, ValueError, pa_arrow.ArrowException) as e:
         raise RecordingError(path, gid, f"cannot be read: {e}", "readable parquet") from None
+
+
+def _meta_passes(meta: dict) -> bool:
+    """Everything META_SCHEMA checks, in plain Python (see _mocap_passes). ASCII only: other
+    text goes through pandera's frame, as it always did."""
+    v = [meta.get(k) for k in META_KEYS]
+    if not all(type(x) is str and x.isascii() for x in v):
+        return False
+    gid, es, cat, session = v
+    return gid != "" and session != "" and es in EVIDENCE_SETS and cat in CATEGORIES.get(es, ())
 
 
 def read_meta_checked(path: Path, gid: str, index_row: dict | None = None) -> dict:
@@ -338,9 +366,10 @@ def read_meta_checked(path: Path, gid: str, index_row: dict | None = None) -> di
         raise RecordingError(
             path, gid, f"holds a {type(meta).__name__}, not an object", "meta.json is an object"
         )
-    run_schema(
-        META_SCHEMA, pd.DataFrame([{k: meta[k] for k in META_KEYS if k in meta}]), path, gid, noun="key"
-    )
+    if not _meta_passes(meta):
+        run_schema(
+            META_SCHEMA, pd.DataFrame([{k: meta[k] for k in META_KEYS if k in meta}]), path, gid, noun="key"
+        )
     if meta["group_id"] != gid:
         raise RecordingError(
             path, gid, f"group_id '{meta['group_id']}' in folder '{gid}'", "meta group_id matches folder"
@@ -356,8 +385,9 @@ def read_meta_checked(path: Path, gid: str, index_row: dict | None = None) -> di
     return meta
 
 
-def file_entry(path: Path) -> dict:
-    data = path.read_bytes()
+def file_entry(path: Path, data: bytes | None = None) -> dict:
+    """Path, sha256 and size; `data` is the file's bytes when the caller has read them already."""
+    data = path.read_bytes() if data is None else data
     return {"path": str(path), "sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
 
 

@@ -23,7 +23,6 @@ from .rawformat import (
     FORMAT_VERSION,
     GROUP_FILES,
     RecordingError,
-    group_dir,
     group_paths,
 )
 from .rawschema import (
@@ -34,8 +33,8 @@ from .rawschema import (
     check_servo,
     file_entry,
     index_schema,
+    load_recording,
     read_meta_checked,
-    read_recording,
     recording_rows,
     run_schema,
 )
@@ -51,6 +50,8 @@ __all__ = [
     "validate_shard",
 ]
 
+# Manifest names and group_paths' keys, in the manifest's order.
+_FILE_KEYS = [(name, name.split(".")[0]) for name in GROUP_FILES]
 _PROGRAM = ["kind", "bearing", "tau", "rho1", "rho2", "rho3"]
 
 
@@ -179,8 +180,18 @@ def _grid_span(tm: np.ndarray, ts: np.ndarray, hz: float):
     return np.ceil(t0 * hz - 1e-6) / hz, np.floor(t1 * hz + 1e-6) / hz
 
 
-def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: bool, span) -> None:
-    t = mocap["t"].to_numpy()
+def _columns(mocap: pd.DataFrame) -> dict:
+    """A checked mocap table as numpy columns, in one conversion (pandas' per-column access costs
+    more than the checks). The schema made t and poses float64 and flags bool, so float64 holds
+    every value exactly; a flag is 1.0 or 0.0."""
+    if not mocap.columns.is_unique:
+        return {c: mocap[c].to_numpy() for c in mocap.columns}
+    a = mocap.to_numpy(dtype=np.float64)
+    return {c: (a[:, i] == 1.0 if c.endswith("_valid") else a[:, i]) for i, c in enumerate(mocap.columns)}
+
+
+def _check_motion(mocap: dict, path, gid: str, lim: Limits, has_target: bool, span) -> None:
+    t = mocap["t"]
     gap = float(np.diff(t).max())
     if gap > lim.max_mocap_gap_s + 1e-9:  # rows missing altogether: every body lost at once
         k = int(np.argmax(np.diff(t)))
@@ -192,7 +203,7 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         )
     bodies = TRACKED_BODIES + (("target",) if has_target else ())
     for b in bodies:
-        ok = mocap[f"{b}_valid"].to_numpy()
+        ok = mocap[f"{b}_valid"]
         if b == "target":
             frac = float(ok.mean())
             if frac < lim.min_target_valid_fraction:
@@ -219,7 +230,7 @@ def _check_motion(mocap: pd.DataFrame, path, gid: str, lim: Limits, has_target: 
         vmax = lim.max_speed_mps.get(b)
         if vmax is None or ok.sum() < 2:
             continue
-        p = mocap.loc[ok, [f"{b}_x", f"{b}_y", f"{b}_z"]].to_numpy()
+        p = np.column_stack([mocap[f"{b}_{c}"][ok] for c in "xyz"])
         tv = t[ok]
         d = np.linalg.norm(np.diff(p, axis=0), axis=1)
         v = d / np.diff(tv)
@@ -265,9 +276,10 @@ def validate_group(
     lim = limits or Limits()
     paths = group_paths(raw_dir, group_id)  # ids are names: the folder stays inside raw_dir
     meta = read_meta_checked(paths["meta"], group_id, index_row)
-    mocap = read_recording(paths["mocap"], group_id)
+    # Each parquet file is read once: the checked bytes are the hashed bytes.
+    mocap, mocap_bytes = load_recording(paths["mocap"], group_id)
     check_mocap(mocap, paths["mocap"], group_id)
-    servo = read_recording(paths["servo"], group_id)
+    servo, servo_bytes = load_recording(paths["servo"], group_id)
     check_servo(servo, paths["servo"], group_id)
     tm = mocap["t"].to_numpy()
     _check_meta(meta, paths["meta"], group_id, lim, (tm[0], tm[-1]))
@@ -293,16 +305,18 @@ def validate_group(
             "target trials describe the target",
         )
     _check_servo(servo, mocap, paths["servo"], group_id, lim)
+    cols = _columns(mocap)
     _check_motion(
-        mocap, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
+        cols, paths["mocap"], group_id, lim, has_target, _grid_span(tm, servo["t"].to_numpy(), lim.hz)
     )
-    valid = mocap[[f"{b}_valid" for b in TRACKED_BODIES]].all(axis=1)
+    valid = np.logical_and.reduce([cols[f"{b}_valid"] for b in TRACKED_BODIES])
+    data = {"mocap": mocap_bytes, "servo": servo_bytes}
     return {
         "group_id": group_id,
         "evidence_set": es,
         "category": cat,
         "session": meta["session"],
-        "files": {name: file_entry(group_dir(raw_dir, group_id) / name) for name in GROUP_FILES},
+        "files": {name: file_entry(paths[k], data.get(k)) for name, k in _FILE_KEYS},
         "n_mocap": int(len(mocap)),
         "n_servo": int(len(servo)),
         "duration_s": float(tm[-1] - tm[0]),

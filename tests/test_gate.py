@@ -209,3 +209,46 @@ def test_fast_path_passes_only_what_pandera_passes(raw, edit):
         assert not fast(df) or ok
         if edit == "none":
             assert fast(df) and ok
+
+
+@pytest.mark.parametrize(
+    "edit",
+    [
+        {},
+        {"session": ""},
+        {"group_id": 7},
+        {"category": None},
+        {"evidence_set": "dynamic"},
+        {"category": "sealed", "evidence_set": "attachment"},
+        {"session": "séance"},
+    ],
+    ids=repr,
+)
+def test_meta_fast_path_passes_only_what_pandera_passes(raw, edit):
+    """meta.json's plain-Python pre-check may doubt good keys (pandera decides), never pass bad ones."""
+    import json
+
+    import pandera.errors as pe
+
+    from embodied_snap import rawschema as R
+
+    meta = {**json.loads(group_paths(raw, "dyn_0001")["meta"].read_text()), **edit}
+    frame = pd.DataFrame([{k: meta[k] for k in R.META_KEYS if k in meta}])
+    try:
+        R.META_SCHEMA.validate(frame)
+        ok = True
+    except (pe.SchemaError, pe.SchemaErrors):
+        ok = False
+    assert not R._meta_passes(meta) or ok
+    if not edit:
+        assert R._meta_passes(meta) and ok
+
+
+def test_recording_read_once_is_the_file(raw):
+    """The gate parses and hashes the same bytes: the frame and the manifest entry are the file's."""
+    from embodied_snap import rawschema as R
+
+    p = group_paths(raw, "dyn_0001")["mocap"]
+    frame, data = R.load_recording(p, "dyn_0001")
+    pd.testing.assert_frame_equal(frame, pd.read_parquet(p), check_exact=True)
+    assert R.file_entry(p, data) == R.file_entry(p)
