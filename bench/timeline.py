@@ -70,7 +70,7 @@ def shares(js: list[dict], stage_of: dict[str, str]) -> list[dict]:
 
 def occupancy(js: list[dict]) -> Counter:
     """Seconds during which k jobs ran, k = 0, 1, 2, ..."""
-    ev = sorted([(j["start"], 1) for j in js] + [(j["end"], -1) for j in js])
+    ev = sorted([(j["start"], 1) for j in js] + [(j["end"], -1) for j in js], key=lambda e: (e[0], -e[1]))
     c, cur, prev = Counter(), 0, 0.0
     for t, d in ev:
         c[cur] += t - prev
@@ -135,7 +135,7 @@ def main(argv=None):
         print(f"{r['stage']:<14}{r['jobs']:>5}{r['first']:>9.0f}{r['last']:>8.0f}{r['job_s']:>8.0f}{r['share']:>7.1%}")
     occ = occupancy(js)
     idle = sum((a.cores - k) * s for k, s in occ.items() if k < a.cores)
-    print("seconds with k jobs running: " + ", ".join(f"{k}: {occ[k]:.0f}" for k in sorted(occ)))
+    print("seconds with k jobs running: " + ", ".join(f"{k}: {occ[k]:.0f}" for k in sorted(occ) if occ[k] > 0))
     print(f"idle core-seconds: {idle:.0f} ({idle / (a.cores * span):.1%} of {a.cores} x {span:.0f} s)")
     if a.png:
         samples = None

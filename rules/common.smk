@@ -52,17 +52,6 @@ ROLE_SHARDS = {
 }
 
 
-# Scheduling (docs/benchmarks.md, "Scheduling"): the GRU seeds gate policy search, the ablation and
-# the deployment, so the shards their training and validation windows come from are validated and
-# resampled before any other; the rest fills the second core while the last seed trains.
-TRAINING_SHARDS = frozenset(ROLE_SHARDS["train"] + ROLE_SHARDS["validation"])
-
-
-def before_training(wildcards):
-    """Priority of a per-shard job: 1 if the GRU seeds' training waits on its shard."""
-    return int(wildcards.shard in TRAINING_SHARDS)
-
-
 LIMITS = Limits.from_config(config)
 # With the simulated rig, index.csv is written during the run from the recordings themselves:
 # verdicts keyed by the plan's rows stay valid from one run to the next (each shard's job still

@@ -14,7 +14,6 @@ rule validate_shard:
         "logs/validate_shard/{shard}.log",
     benchmark:
         "benchmarks/validate_shard/{shard}.tsv"
-    priority: before_training
     conda:
         "../envs/esnap.yaml"
     params:
@@ -72,7 +71,6 @@ rule resample_shard:
         "logs/resample_shard/{shard}.log",
     benchmark:
         "benchmarks/resample_shard/{shard}.tsv"
-    priority: before_training
     conda:
         "../envs/esnap.yaml"
     params:
@@ -95,7 +93,6 @@ rule validate_sealed:
         f"{RAW}/{sealed.RECORD}",
     log:
         "logs/validate_sealed.log",
-    priority: 1
     conda:
         "../envs/esnap.yaml"
     params:
@@ -116,7 +113,6 @@ rule split:
         "results/splits/split.csv",
     log:
         "logs/split.log",
-    priority: 1
     conda:
         "../envs/esnap.yaml"
     params:
@@ -143,7 +139,6 @@ rule windows:
         "logs/windows/{role}.log",
     benchmark:
         "benchmarks/windows/{role}.tsv"
-    priority: lambda wc: int(wc.role != "sealed")
     conda:
         "../envs/esnap.yaml"
     params:

@@ -33,7 +33,6 @@ rule dynamics_train:
         "logs/dynamics/train_seed{seed}.log",
     benchmark:
         "benchmarks/dynamics/train_seed{seed}.tsv"
-    priority: 1
     conda:
         "../envs/esnap.yaml"
     threads: DCFG["threads"]

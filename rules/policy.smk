@@ -96,6 +96,8 @@ rule policy_search:
         "logs/policy/search_{arch}_seed{seed}.log",
     benchmark:
         "benchmarks/policy/search_{arch}_seed{seed}.tsv"
+    # The ablation and the deployment need only the shared runs. A priority is cheap here: Snakemake
+    # 9.27 re-examines every waiting job's inputs each second, and these have few (docs/benchmarks.md).
     priority: lambda wc: int(f"{POL}/runs/{wc.arch}_seed{wc.seed}.json" in SHARED_RUNS)
     conda:
         "../envs/esnap.yaml"

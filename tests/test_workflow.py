@@ -105,23 +105,22 @@ def test_nothing_to_do_after_a_run(wf):
     assert dry_jobs(wf, "all") == []
 
 
-def test_what_the_gru_training_reads_is_scheduled_first(wf):
-    """Policy search, the ablation and the deployment wait on the GRU seeds, so the shards their
-    training reads (found here from the DAG) are validated before any other shard (the rules'
-    `priority`): in the fresh run, each such validation started no later than every other one.
-    They all become ready together (with index.csv, once every shard is recorded), so the order
-    is the scheduler's choice."""
+def test_the_runs_the_ablation_and_deployment_read_are_searched_first(wf):
+    """The ablation and the deployment read only the shared architecture's runs (found here from
+    the DAG), so those searches go first (policy_search's `priority`) and the two stages can run
+    beside the other searches: in the fresh run no other search started before the last of them.
+    All searches become ready together (with the ensemble), so the order is the scheduler's."""
     sys.path.insert(0, str(REPO / "bench"))
     from timeline import jobs
 
-    out = snakemake(wf, "-n", "--forceall", "results/dynamics/models/seed0.pt").stdout
-    upstream = set(re.findall(r"rule validate_shard:(?:\n\s+\S.*)*?\n\s+wildcards: shard=(\S+)", out))
-    assert upstream and all(s.startswith("dynamics") for s in upstream)
+    out = snakemake(wf, "-n", "--forceall", "results/deployment/manifest.json").stdout
+    read = set(re.findall(r"rule policy_search:(?:\n\s+\S.*)*?\n\s+wildcards: (arch=\w+, seed=\d+)", out))
+    assert read and all(w.startswith("arch=shared,") for w in read)
     first = jobs(sorted((wf / ".snakemake/log").glob("*.snakemake.log"))[0])  # the fresh run's log
     starts = {True: [], False: []}
     for j in first:
-        if j["rule"] == "validate_shard":
-            starts[j["wildcards"].removeprefix("shard=") in upstream].append(j["start"])
+        if j["rule"] == "policy_search":
+            starts[j["wildcards"] in read].append(j["start"])
     assert starts[True] and starts[False]
     assert max(starts[True]) <= min(starts[False]), starts
 
