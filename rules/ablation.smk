@@ -46,6 +46,7 @@ rule ablation_offsets:
         "logs/ablation/offsets.log",
     benchmark:
         "benchmarks/ablation/offsets.tsv"
+    priority: 1  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -71,6 +72,7 @@ rule ablation_rules:
         "logs/ablation/rules.log",
     benchmark:
         "benchmarks/ablation/rules.tsv"
+    priority: 1  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -98,6 +100,7 @@ rule ablation_bend:
         "logs/ablation/bend.log",
     benchmark:
         "benchmarks/ablation/bend.tsv"
+    priority: 1  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -122,6 +125,7 @@ rule ablation_perturb:
         "logs/ablation/perturb.log",
     benchmark:
         "benchmarks/ablation/perturb.tsv"
+    priority: 1  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1

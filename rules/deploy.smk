@@ -36,6 +36,7 @@ rule deploy_manifest:
         f"{DEPLOY}/manifest.json",
     log:
         "logs/deployment/manifest.log",
+    priority: 1  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     params:

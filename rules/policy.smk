@@ -96,8 +96,10 @@ rule policy_search:
         "logs/policy/search_{arch}_seed{seed}.log",
     benchmark:
         "benchmarks/policy/search_{arch}_seed{seed}.tsv"
-    # The ablation and the deployment need only the shared runs. A priority is cheap here: Snakemake
-    # 9.27 re-examines every waiting job's inputs each second, and these have few (docs/benchmarks.md).
+    # The ablation and the deployment need only the shared runs: those go first, and the jobs that
+    # read them go before the other searches. Snakemake 9.27 re-examines every waiting job's inputs
+    # about once a second per finished job, so no job with many inputs is left waiting
+    # (docs/benchmarks.md, "Scheduling").
     priority: lambda wc: int(f"{POL}/runs/{wc.arch}_seed{wc.seed}.json" in SHARED_RUNS)
     conda:
         "../envs/esnap.yaml"
@@ -129,6 +131,7 @@ rule policy_evaluate:
         f"{POL}/eval/{{arch}}_seed{{seed}}.parquet",
     log:
         "logs/policy/evaluate_{arch}_seed{seed}.log",
+    priority: lambda wc: int(f"{POL}/runs/{wc.arch}_seed{wc.seed}.json" in SHARED_RUNS)
     conda:
         "../envs/esnap.yaml"
     threads: 1

@@ -125,6 +125,28 @@ def test_the_runs_the_ablation_and_deployment_read_are_searched_first(wf):
     assert max(starts[True]) <= min(starts[False]), starts
 
 
+def test_priorities_are_exactly_on_the_jobs_of_the_shared_runs_alone(wf):
+    """An allow list derived from the DAG: a job has a priority if and only if the policy runs it
+    writes or reads are the shared architecture's alone (its searches and evaluations, the
+    ablation, the deployment manifest), so nothing else is held back. The separation proof, which
+    also reads them, waits on every claims table anyway."""
+    out = snakemake(wf, "-n", "--forceall", "all").stdout
+    jobs, cur = [], None
+    for line in out.splitlines():
+        if m := re.match(r"^(?:local)?(?:rule|checkpoint) (\w+):$", line):
+            cur = dict(rule=m.group(1), files="", priority=0)
+            jobs.append(cur)
+        elif cur and (m := re.match(r"^\s+(input|output): (.*)$", line)):
+            cur["files"] += " " + m.group(2)
+        elif cur and (m := re.match(r"^\s+priority: (\d+)$", line)):
+            cur["priority"] = int(m.group(1))
+    runs = [set(re.findall(r"results/policy/runs/(\w+)_seed\d+\.json", j["files"])) for j in jobs]
+    assert any(j["priority"] for j in jobs)
+    first = [r == {"shared"} and "claims.csv" not in j["files"] for j, r in zip(jobs, runs)]
+    assert all(bool(j["priority"]) == f for j, f in zip(jobs, first)), [
+        (j["rule"], j["priority"]) for j, f in zip(jobs, first) if bool(j["priority"]) != f]
+
+
 def test_audit_of_train_windows_names_train_groups_only(wf):
     r = run([str(BIN / "esnap"), "audit", "results/splits/windows_train.npz", "--json"], wf)
     rep = json.loads(r.stdout)
