@@ -70,6 +70,7 @@ rule twin_phenomena:
         "logs/twin_phenomena.log",
     benchmark:
         "benchmarks/twin_phenomena.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -96,6 +97,7 @@ rule twin_validation:
         "results/twin/validation.json",
     log:
         "logs/twin_validation.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     script:

@@ -24,6 +24,7 @@ rule characterize_kinematics:
         "logs/characterize/kinematics.log",
     benchmark:
         "benchmarks/characterize/kinematics.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -48,6 +49,7 @@ rule characterize_servo:
         "logs/characterize/servo.log",
     benchmark:
         "benchmarks/characterize/servo.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -71,6 +73,7 @@ rule characterize_release:
         "logs/characterize/release.log",
     benchmark:
         "benchmarks/characterize/release.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -95,6 +98,7 @@ rule characterize_attachment:
         "logs/characterize/attachment.log",
     benchmark:
         "benchmarks/characterize/attachment.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -120,6 +124,7 @@ rule characterize_snap:
         "logs/characterize/snap.log",
     benchmark:
         "benchmarks/characterize/snap.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -142,6 +147,7 @@ rule characterize_delay_sweep:
         f"{CHAR}/delay_sweep.json",
     log:
         "logs/characterize/delay_sweep.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -167,6 +173,7 @@ rule characterize_heldbase:
         "logs/characterize/heldbase.log",
     benchmark:
         "benchmarks/characterize/heldbase.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:

@@ -86,6 +86,14 @@ except RecordingError as e:
     raise WorkflowError(f"error: {e}") from None
 
 
+def reads_recordings(wildcards, input):
+    """Priority of a job: 1 if it reads recordings. Such a job has hundreds of inputs, and Snakemake
+    9.27 re-examines the inputs of every waiting job about once a second per finished job, so
+    none may wait behind the long light jobs (GRU training, policy search): docs/benchmarks.md,
+    "Scheduling and the run's critical path"."""
+    return int(any(str(f).startswith(f"{RAW}/") for f in input))
+
+
 def imports(script):
     """Code inputs of a rule: the package modules workflow_scripts/<script>.py imports,
     transitively (read from the sources, never typed), so that editing a module reruns exactly

@@ -14,6 +14,7 @@ rule validate_shard:
         "logs/validate_shard/{shard}.log",
     benchmark:
         "benchmarks/validate_shard/{shard}.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -33,6 +34,7 @@ rule validate_index:
         "results/raw/index_check.json",
     log:
         "logs/validate_index.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -71,6 +73,7 @@ rule resample_shard:
         "logs/resample_shard/{shard}.log",
     benchmark:
         "benchmarks/resample_shard/{shard}.tsv"
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -93,6 +96,7 @@ rule validate_sealed:
         f"{RAW}/{sealed.RECORD}",
     log:
         "logs/validate_sealed.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -113,6 +117,7 @@ rule split:
         "results/splits/split.csv",
     log:
         "logs/split.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:

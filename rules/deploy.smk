@@ -102,6 +102,7 @@ if DEPLOYED:
             ),
         log:
             "logs/deployment/table.log",
+        priority: reads_recordings
         conda:
             "../envs/esnap.yaml"
         params:
@@ -128,6 +129,7 @@ if DEPLOYED:
             "logs/fig_deployment.log",
         benchmark:
             "benchmarks/deployment/fig.tsv"
+        priority: reads_recordings
         conda:
             "../envs/esnap.yaml"
         params:

@@ -122,6 +122,7 @@ rule dynamics_gate:
         f"{DYN}/gate.json",
     log:
         "logs/dynamics/gate.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -144,6 +145,7 @@ rule dynamics_hold:
         summary=f"{DYN}/hold.json",
     log:
         "logs/dynamics/hold.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:

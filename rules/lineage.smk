@@ -26,6 +26,7 @@ rule check_separation:
         "results/lineage/separation.json",
     log:
         "logs/check_separation.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -46,6 +47,7 @@ rule prov_export:
         "results/lineage/prov.json",
     log:
         "logs/prov_export.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:

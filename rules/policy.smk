@@ -44,6 +44,7 @@ rule policy_workspace:
         f"{POL}/workspace.json",
     log:
         "logs/policy/workspace.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:

@@ -68,6 +68,7 @@ rule fig_system:
         ),
     log:
         "logs/fig_system.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -99,6 +100,7 @@ rule table_evidence:
         caption=f"{CAPTIONS}/table1_evidence.rst",
     log:
         "logs/table_evidence.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
@@ -132,6 +134,7 @@ rule table_claims:
         caption=f"{CAPTIONS}/claims.rst",
     log:
         "logs/table_claims.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     script:
