@@ -55,6 +55,10 @@ PRODUCTS = [
 ]
 
 
+# The robustness variants' products (`snakemake robustness`): the crate lists them once they exist.
+ROBUSTNESS = ["results/robustness/variants.csv", "results/figs/figS1_robustness.pdf"]
+
+
 rule all:
     default_target: True
     input:
@@ -66,5 +70,4 @@ rule robustness:
     """The architecture benchmark's robustness variants (docs/policy.md): about an hour more on two
     cores at the paper budget, so not part of `all`."""
     input:
-        "results/robustness/variants.csv",
-        "results/figs/figS1_robustness.pdf",
+        ROBUSTNESS,

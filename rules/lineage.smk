@@ -57,9 +57,11 @@ rule prov_export:
 
 
 rule crate:
-    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product."""
+    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product, the
+    robustness variants' too once they exist (a later `snakemake all` then rewrites the crate).
+    """
     input:
-        lambda wc: PRODUCTS,
+        lambda wc: PRODUCTS + [f for f in ROBUSTNESS if Path(f).exists()],
         code=imports("crate"),
     output:
         "results/crate/ro-crate-metadata.json",
