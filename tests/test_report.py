@@ -90,6 +90,8 @@ def test_report_opens_in_chromium_with_every_figure_and_table(wf):
     res = check_report(html, wf / "results/report.png", show="results/figs/fig1_system.png")
     assert res["problems"] == []
     figs = {f"results/figs/{p.name}" for p in (wf / "results/figures").glob("*.png")}
+    # the robustness figure joins the report once it exists (the crate waits on it: docs/report.md)
+    figs |= {f for f in ["results/figs/figS1_robustness.png"] if (wf / f).exists()}
     tables = {f"results/tables/{p.name}" for p in (wf / "results/tables").glob("*.html")}
     assert {"results/tables/table1_evidence.html", "results/tables/claims.html"} <= tables
     assert set(res["results"]) == figs | tables
