@@ -29,6 +29,12 @@ SIM_PARAMS = dict(
 )
 
 
+def shared_run(wildcards):
+    """Priority of a search or evaluation: 1 for a shared run (docs/benchmarks.md, "Scheduling and
+    the run's critical path")."""
+    return int(f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS)
+
+
 wildcard_constraints:
     arch="|".join(PBUDGET["seeds"]),
 
@@ -100,8 +106,8 @@ rule policy_search:
     # The ablation and the deployment need only the shared runs: those go first, and the jobs that
     # read them go before the other searches. Snakemake 9.27 re-examines every waiting job's inputs
     # about once a second per finished job, so no job with many inputs is left waiting
-    # (docs/benchmarks.md, "Scheduling").
-    priority: lambda wc: int(f"{POL}/runs/{wc.arch}_seed{wc.seed}.json" in SHARED_RUNS)
+    # (docs/benchmarks.md, "Scheduling and the run's critical path").
+    priority: shared_run
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -132,7 +138,7 @@ rule policy_evaluate:
         f"{POL}/eval/{{arch}}_seed{{seed}}.parquet",
     log:
         "logs/policy/evaluate_{arch}_seed{seed}.log",
-    priority: lambda wc: int(f"{POL}/runs/{wc.arch}_seed{wc.seed}.json" in SHARED_RUNS)
+    priority: shared_run
     conda:
         "../envs/esnap.yaml"
     threads: 1

@@ -134,24 +134,17 @@ def test_priorities_are_exactly_on_the_jobs_that_must_not_wait(wf):
     shared runs, but it waits on every claims table anyway; the robustness variants are not in
     `all`."""
     sys.path.insert(0, str(REPO / "bench"))
+    from timeline import jobs as logged
     from timeline import stages
 
     stage = stages(wf)
-    jobs, cur = [], None
-    for line in sorted((wf / ".snakemake/log").glob("*.snakemake.log"))[0].read_text().splitlines():
-        if m := re.match(r"^(?:local)?(?:rule|checkpoint) (\w+):$", line):
-            cur = dict(rule=m.group(1), input="", output="", priority=0)
-            jobs.append(cur)
-        elif cur and (m := re.match(r"^\s+(input|output): (.*)$", line)):
-            cur[m.group(1)] = m.group(2)
-        elif cur and (m := re.match(r"^\s+priority: (\d+)$", line)):
-            cur["priority"] = int(m.group(1))
-    jobs = [j for j in jobs if stage[j["rule"]] != "robustness"]
+    fresh = sorted((wf / ".snakemake/log").glob("*.snakemake.log"))[0]
+    jobs = [j for j in logged(fresh) if stage[j["rule"]] != "robustness"]
 
     def first(j):
-        runs = set(re.findall(r"results/policy/runs/(\w+)_seed\d+\.json", j["input"] + " " + j["output"]))
-        reads_raw = any(f.startswith("raw_data/") for f in j["input"].split(", "))
-        return reads_raw or (runs == {"shared"} and "claims.csv" not in j["input"])
+        runs = set(re.findall(r"results/policy/runs/(\w+)_seed\d+\.json", " ".join(j["input"] + j["output"])))
+        reads_raw = any(f.startswith("raw_data/") for f in j["input"])
+        return reads_raw or (runs == {"shared"} and not any(f.endswith("claims.csv") for f in j["input"]))
 
     assert any(j["priority"] for j in jobs) and not all(j["priority"] for j in jobs)
     assert all(bool(j["priority"]) == first(j) for j in jobs), [
