@@ -94,6 +94,12 @@ def reads_recordings(wildcards, input):
     return int(any(str(f).startswith(f"{RAW}/") for f in input))
 
 
+def shared_run(wildcards):
+    """Priority of a policy search or evaluation: 1 for a shared run (SHARED_RUNS, rules/policy.smk),
+    which the ablation and the deployment read."""
+    return int(f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS)
+
+
 def imports(script):
     """Code inputs of a rule: the package modules workflow_scripts/<script>.py imports,
     transitively (read from the sources, never typed), so that editing a module reruns exactly

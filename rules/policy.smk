@@ -29,12 +29,6 @@ SIM_PARAMS = dict(
 )
 
 
-def shared_run(wildcards):
-    """Priority of a search or evaluation: 1 for a shared run (docs/benchmarks.md, "Scheduling and
-    the run's critical path")."""
-    return int(f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS)
-
-
 wildcard_constraints:
     arch="|".join(PBUDGET["seeds"]),
 
