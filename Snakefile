@@ -8,7 +8,17 @@ min_version("9.0")
 configfile: "config.yaml"
 
 
-validate(config, "schemas/config.schema.yaml")
+# A config that breaks the schema stops here in one line naming the key and the rule, as `esnap`
+# says it (embodied_snap/runconfig.py), not with the whole schema (nor Snakemake's frame around it).
+try:
+    validate(config, "schemas/config.schema.yaml")
+except WorkflowError as e:
+    import sys
+
+    sys.path.insert(0, workflow.basedir)
+    from embodied_snap.runconfig import schema_error
+
+    sys.exit(f"error: {schema_error(e)}")
 
 
 include: "rules/common.smk"

@@ -109,11 +109,18 @@ def claim(config: dict, root=".", argv: list[str] | None = None) -> str:
     """Before a run of config's budget: the trees hold it (or are empty, and now do), else one line
     naming both budgets, the switch, and argv (the command that asked) asking for the trees' budget."""
     root, asked = Path(root), config["budget"]
+    held = fits(config, root, argv)
+    if held is None or not (root / ACTIVE).exists():
+        _record(root, asked)
+    return asked
+
+
+def fits(config: dict, root=".", argv: list[str] | None = None) -> str | None:
+    """The budget the trees hold (None: empty) when config asks for it; else the one line."""
+    root, asked = Path(root), config["budget"]
     held = active(config, root)
     if held is None or held == asked:
-        if not (root / ACTIVE).exists() or held is None:
-            _record(root, asked)
-        return asked
+        return held
     raise BudgetError(
         f"raw_data/ and results/ hold the {held} budget's run and this asks for {asked}: "
         f"`esnap budget {asked}` switches (keeping {held}'s in {HOME}/{held}/), "

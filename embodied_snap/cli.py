@@ -1,21 +1,65 @@
-"""`esnap`: the project's command line. Each subcommand is a thin call into the package."""
+"""`esnap`: the project's command line. Each subcommand is a thin call into the package.
+
+Every bad invocation is one line on stderr: exit status 2 for a usage error (a bad argument, a
+missing file, a config that breaks the schema), 1 for a check that failed, 130 on Ctrl-C; a closed
+pipe (`esnap claims | head`) ends quietly. Anything else is a bug: one "internal error" line, and
+ESNAP_DEBUG=1 shows its traceback.
+"""
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
 
-def _config(path: str, budget: str | None) -> dict:
-    import yaml  # not at the top: `esnap deploy` runs on the lab PC with numpy and dynamixel-sdk alone
+class UsageError(Exception):
+    """A bad argument: one line on stderr, exit status 2. `prog`: the (sub)command it is about."""
 
-    with open(path) as f:
-        cfg = yaml.safe_load(f)
-    if budget:
-        cfg["budget"] = budget
-    return cfg
+    def __init__(self, message: str, prog: str | None = None):
+        super().__init__(message)
+        self.prog = prog
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one line, not argparse's usage block
+        raise UsageError(f"{message} (see: {self.prog} --help)", self.prog)
+
+
+def _path(path, what: str) -> Path:
+    if not str(path).strip():  # Path("") is "."
+        raise UsageError(f"{what}: empty path")
+    return Path(path)
+
+
+def _dir(path, what: str) -> Path:
+    if not _path(path, what).is_dir():
+        raise UsageError(f"{what} {path}: no such directory")
+    return Path(path)
+
+
+def _file(path, what: str) -> Path:
+    if not _path(path, what).is_file():
+        raise UsageError(f"{what} {path}: no such file")
+    return Path(path)
+
+
+def _made_dir(path, what: str) -> Path:
+    """A directory to write into, made now (before any work) if it is not there."""
+    try:
+        _path(path, what).mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise UsageError(f"{what} {path}: cannot make it a directory ({e.strerror or e})") from None
+    return Path(path)
+
+
+def _config(a, root=".") -> dict:
+    """The run's config: config.yaml, --configfile, --config (embodied_snap/runconfig.py)."""
+    from . import runconfig
+
+    return runconfig.load(a.configfile, a.config, root=root)
 
 
 def _acquire(args):
@@ -32,20 +76,34 @@ def cmd_twin(a) -> int:
     from multiprocessing import Pool
 
     from . import protocol
-    from .plan import load_plan
-    from .rawformat import write_index, write_json
+    from .plan import PlanError, load_plan
+    from .rawformat import RecordingError, write_index, write_json
     from .twin.truth import truth
 
-    cfg = _config(a.config, a.budget)
-    raw = Path(a.raw_dir or cfg["raw_data"]["dir"])
-    plan = load_plan(cfg, raw)
+    cfg = _config(a)
+    raw = Path(a.raw_dir if a.raw_dir is not None else cfg["raw_data"]["dir"])
+    (_dir if a.action == "phenomena" else _path)(raw, "--raw-dir")
+    try:
+        plan = load_plan(cfg, raw)
+    except (PlanError, RecordingError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    unknown = sorted(set(a.evidence_set or []) - set(plan.evidence_set))
+    if unknown:
+        known = ", ".join(sorted(set(plan.evidence_set)))
+        raise UsageError(f"--evidence-set {', '.join(unknown)}: not in the plan ({known})")
     if a.evidence_set:
         plan = plan[plan.evidence_set.isin(a.evidence_set)]
     if a.action == "phenomena":
         from .twin.phenomena import phenomena
 
-        print(json.dumps(phenomena(raw, plan, protocol.load(cfg)), indent=1))
+        try:
+            print(json.dumps(phenomena(raw, plan, protocol.load(cfg)), indent=1))
+        except FileNotFoundError as e:
+            print(f"error: {raw}: {e.filename} missing (record the groups first: esnap twin acquire)", file=sys.stderr)
+            return 1
         return 0
+    _made_dir(raw, "--raw-dir")  # after every check: a refused command leaves nothing behind
     t0 = time.perf_counter()
     # Every group's randomness comes from (seed, group_id) alone, so any partition gives the same bytes.
     proto = protocol.params(cfg, "primitive", "rig", "thresholds")
@@ -60,13 +118,38 @@ def cmd_twin(a) -> int:
 
 
 def _tree_config(a) -> dict:
-    cfg = _config(a.config, a.budget)
-    cfg["raw_data"] = {**cfg["raw_data"], "dir": a.raw_dir or cfg["raw_data"]["dir"]}
+    from . import runconfig
+
+    cfg = _config(a)
+    cfg["raw_data"] = {**cfg["raw_data"], "dir": a.raw_dir if a.raw_dir is not None else cfg["raw_data"]["dir"]}
+    _dir(cfg["raw_data"]["dir"], "recording tree")
     if a.source:
         cfg["raw_data"]["source"] = a.source
     if getattr(a, "exclude", None):
         cfg["raw_data"]["exclude"] = a.exclude
-    return cfg
+    return runconfig.validate(cfg)
+
+
+def _fits_tree(a, cfg: dict) -> None:
+    """A tree recorded for another budget is refused in one line with the command that fits it
+    (docs/design.md, "Budgets"), before the gate reports its split sizes."""
+    from . import budget
+
+    try:
+        budget.check_tree(cfg, cfg["raw_data"]["dir"], argv=a.argv)
+    except budget.BudgetError as e:
+        raise UsageError(str(e)) from None
+
+
+def _fits_run(a, cfg: dict | None) -> None:
+    """A config asking for another budget than the one results/ holds: one line, before any record is read."""
+    from . import budget
+
+    if cfg is not None:
+        try:
+            budget.fits(cfg, a.root, argv=a.argv)
+        except budget.BudgetError as e:
+            raise UsageError(str(e)) from None
 
 
 def cmd_validate(a) -> int:
@@ -76,6 +159,7 @@ def cmd_validate(a) -> int:
     from .verdicts import check_tree
 
     cfg = _tree_config(a)
+    _fits_tree(a, cfg)
     try:
         plan = check_tree(cfg, cfg["raw_data"]["dir"])
     except (RecordingError, PlanError) as e:
@@ -96,6 +180,7 @@ def cmd_seal(a) -> int:
     from .verdicts import Verdicts, index_rows
 
     cfg = _tree_config(a)
+    _fits_tree(a, cfg)
     raw = cfg["raw_data"]["dir"]
     try:
         plan = load_plan(cfg, raw)
@@ -113,31 +198,22 @@ def cmd_seal(a) -> int:
 
 
 def _run_config(a) -> dict | None:
-    """The config named on the command line, as Snakemake takes it (--configfile, then --config
-    KEY=VALUE with YAML values); None when neither is given (then: the last run's, from the records)."""
-    if not a.config and not a.configfile:
-        return None
-    import yaml
+    """The config named on the command line (--configfile, --config), None when neither is given
+    (then: the config the last run recorded)."""
+    from . import runconfig
 
-    cfg = _config(Path(a.root) / (a.configfile or "config.yaml"), None)
-    for kv in a.config or []:
-        key, sep, val = kv.partition("=")
-        if not sep:
-            raise SystemExit(f"esnap: --config {kv}: expected KEY=VALUE")
-        cfg[key] = yaml.safe_load(val)
-    return cfg
-
-
-def _config_args(sp) -> None:
-    sp.add_argument("--configfile", help="the run's config file (default with --config: config.yaml)")
-    sp.add_argument("--config", nargs="+", metavar="KEY=VALUE",
-                    help="config overrides as for snakemake (default: the config the last run recorded)")
+    return _config(a, root=a.root) if runconfig.given(a) else None
 
 
 def cmd_audit(a) -> int:
     from .lineage.audit import audit, format_audit
 
-    report = audit(a.result, root=a.root, config=_run_config(a))
+    _dir(a.root, "--root")
+    cfg = _run_config(a)
+    _fits_run(a, cfg)
+    if not (Path(a.root) / _path(a.result, "RESULT")).exists():
+        raise UsageError(f"{a.result}: no such file or directory under {a.root}")
+    report = audit(a.result, root=a.root, config=cfg)
     print(json.dumps(report, indent=1, default=str) if a.json else format_audit(report))
     return 1 if report.get("stale") else 0
 
@@ -145,7 +221,10 @@ def cmd_audit(a) -> int:
 def cmd_check_separation(a) -> int:
     from .lineage.checks import check
 
-    res = check(a.root, static=not a.no_static, records=not a.no_records, config_overrides=_run_config(a))
+    _dir(a.root, "--root")
+    cfg = _run_config(a)
+    _fits_run(a, cfg)
+    res = check(a.root, static=not a.no_static, records=not a.no_records, config_overrides=cfg)
     for v in res["violations"]:
         print(f"leak: {v}")
     print("separation holds" if res["ok"] else f"{len(res['violations'])} separation violation(s)")
@@ -155,7 +234,12 @@ def cmd_check_separation(a) -> int:
 def cmd_prov(a) -> int:
     from .lineage.prov import export
 
-    print(export(a.root, a.out))
+    _dir(a.root, "--root")
+    _path(a.out, "--out")
+    try:
+        print(export(a.root, a.out))
+    except OSError as e:
+        raise UsageError(f"--out {a.out}: cannot write it ({e.strerror or e})") from None
     return 0
 
 
@@ -163,6 +247,9 @@ def cmd_resources(a) -> int:
     from .lineage.dag import rule_table
     from .resources import ResourceError, render, set_resources, updated_profile
 
+    _dir(a.root, "--root")
+    _dir(a.benchmarks, "--benchmarks")
+    _file(a.profile, "--profile")
     try:
         res, missing = set_resources(a.benchmarks, rule_table(a.root))
     except ResourceError as e:
@@ -184,37 +271,48 @@ def cmd_resources(a) -> int:
     return 0
 
 
-def _target(a, man_path) -> list[float]:
-    if a.target:
-        return [float(x) for x in a.target.split(",")]
-    if a.target_from_mocap:
-        with open(a.target_from_mocap) as f:  # the mocap system's export: {"target_m": [x, y, z]} in the base frame
-            return [float(x) for x in json.load(f)["target_m"]]
-    if a.placement is None:
-        raise SystemExit("error: give --target, --target-from-mocap or --placement")
-    with open(man_path) as f:
-        return json.load(f)["placements"][a.placement - 1]["target_m"]
-
-
 def cmd_deploy(a) -> int:
-    """One open-loop trial of the manifest's policy (docs/deployment.md). Numpy + dynamixel-sdk only."""
+    """One open-loop trial of the manifest's policy (docs/deployment.md). Numpy + dynamixel-sdk only.
+    Every argument is checked (deploy/arguments.py) before the port opens."""
+    from .deploy import arguments
     from .deploy.client import DeployError, run
+    from .deploy.manifest import ManifestError, load
 
+    _file(a.manifest, "--manifest")
     if not a.dry_run and not a.port:
-        print("error: --port is required (or --dry-run)", file=sys.stderr)
-        return 2
-    ask = None
-    if not a.yes and not a.dry_run and sys.stdin.isatty():
-        ask = lambda: input("execute this trial on the arm? [y/N] ").strip().lower() == "y"  # noqa: E731
+        raise UsageError("--port is required (or --dry-run)")
+    if not a.dry_run and not a.yes and not sys.stdin.isatty():
+        raise UsageError("--yes is required when stdin is not a terminal: nobody can be asked before the arm moves")
     try:
-        r = run(a.manifest, a.port, _target(a, a.manifest), baud=a.baud, out=a.out, group_id=a.group_id,
-                placement=a.placement, dry_run=a.dry_run, confirm=ask)
+        man = load(a.manifest)
+        got = arguments.check(man, a)
+    except arguments.ArgumentError as e:
+        raise UsageError(str(e)) from None
+    except ManifestError as e:
+        print(f"error: refused: {e}", file=sys.stderr)
+        return 1
+    except DeployError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    ask = None
+    if not a.yes and not a.dry_run:
+        ask = lambda: _ask("execute this trial on the arm? [y/N] ")  # noqa: E731
+    try:
+        r = run(a.manifest, a.port, got["target"], baud=got["baud"], out=got["out"], group_id=got["group_id"],
+                placement=got["placement"], dry_run=a.dry_run, confirm=ask)
     except DeployError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     if not a.dry_run:
         print(f"trial complete: {len(r['log'])} cycles, torque off" + (f", written to {a.out}" if a.out else ""))
     return 0
+
+
+def _ask(question: str) -> bool:
+    try:
+        return input(question).strip().lower() == "y"
+    except EOFError:  # Ctrl-D: no
+        return False
 
 
 def cmd_deploy_index(a) -> int:
@@ -224,8 +322,10 @@ def cmd_deploy_index(a) -> int:
     from .lineage.groups import deployment_dir
     from .validate import Limits
 
-    cfg = _config(a.config, None)
-    raw = Path(a.raw or deployment_dir(cfg["raw_data"]["dir"]))
+    cfg = _config(a)
+    raw = Path(a.raw if a.raw is not None else deployment_dir(cfg["raw_data"]["dir"]))
+    if a.raw is not None:
+        _dir(raw, "--raw")
     found = T.lab_trials(raw)
     if not found:
         print(f"error: {raw}: no trial (no groups/*/meta.json, no aborted/*.json; record with esnap deploy --out)",
@@ -246,13 +346,22 @@ def cmd_deploy_index(a) -> int:
 
 def cmd_claims(a) -> int:
     """The claims ledger, filtered by paper section and status."""
-    from .paper.ledger import count_line, read
+    from .paper.ledger import COLUMNS, count_line, read
 
-    path = Path(a.root) / a.ledger
-    if not path.exists():
+    path = Path(_dir(a.root, "--root")) / a.ledger
+    if not path.is_file():
         print(f"error: {a.ledger}: no claims ledger (run: snakemake results/tables/claims.csv)", file=sys.stderr)
         return 1
-    rows = [r for r in read(path) if (not a.section or r["section"] in a.section)
+    try:
+        rows = read(path)
+    except (OSError, UnicodeDecodeError) as e:
+        print(f"error: {a.ledger}: cannot read the claims ledger ({e})", file=sys.stderr)
+        return 1
+    lacks = sorted(set(COLUMNS) - set(rows[0])) if rows else []
+    if lacks:
+        print(f"error: {a.ledger}: not a claims ledger (no column {', '.join(lacks)})", file=sys.stderr)
+        return 1
+    rows = [r for r in rows if (not a.section or r["section"] in a.section)
             and (not a.status or r["status"] in a.status)]
     print(count_line(rows))
     w = max([len(r["claim_id"]) for r in rows] + [8])
@@ -266,20 +375,59 @@ def cmd_claims(a) -> int:
 def cmd_crate(a) -> int:
     from .paper.crate import verify, write
 
+    _dir(a.root, "--root")
     if a.verify:
+        meta = Path(a.root) / a.out / "ro-crate-metadata.json"
+        if not meta.is_file():
+            print(f"error: {a.out}: no crate (no ro-crate-metadata.json; write it: esnap crate)", file=sys.stderr)
+            return 1
         bad = verify(a.root, a.out.rstrip("/"))
         for b in bad:
             print(f"error: {b}")
         print("crate matches results/" if not bad else f"{len(bad)} result file(s) differ from the crate")
         return 1 if bad else 0
-    print(write(a.root, a.out.rstrip("/")))
+    _path(a.out, "--out")
+    try:
+        print(write(a.root, a.out.rstrip("/")))
+    except OSError as e:
+        raise UsageError(f"--out {a.out}: cannot write the crate there ({e.strerror or e})") from None
+    return 0
+
+
+def cmd_budget(a) -> int:
+    """Switch raw_data/ and results/ to another budget's run, keeping this one's (docs/design.md)."""
+    from . import budget
+
+    cfg = _config(a)
+    if a.show and a.name is not None:
+        raise UsageError(f"{a.name!r} and --show: give one")
+    if a.show:
+        print(budget.shown(cfg))
+        return 0
+    try:
+        print(budget.switch(cfg, cfg["budget"] if a.name is None else a.name))
+    except budget.BudgetError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     return 0
 
 
 def cmd_report_check(a) -> int:
+    _file(a.html, "report")
+    _path(a.screenshot, "--screenshot")
+    try:
+        from playwright.sync_api import Error as PlaywrightError
+    except ImportError:
+        print("error: report-check needs playwright (pip install -e '.[dev]')", file=sys.stderr)
+        return 1
+
     from .paper.browser import check_report
 
-    res = check_report(a.html, a.screenshot)
+    try:
+        res = check_report(a.html, a.screenshot)
+    except PlaywrightError as e:
+        print(f"error: headless Chromium: {str(e).splitlines()[0]}", file=sys.stderr)
+        return 1
     for path, what in res["results"].items():
         print(f"{path}: {what}")
     for prob in res["problems"]:
@@ -288,17 +436,42 @@ def cmd_report_check(a) -> int:
     return 1 if res["problems"] else 0
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="esnap", description=__doc__)
-    sub = p.add_subparsers(dest="cmd", required=True)
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("embodied-snap")
+    except PackageNotFoundError:  # run from a checkout that was never installed
+        return "unknown (not installed)"
+
+
+def _positive(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid int value: {text!r}") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{n}: expected 1 or more")
+    return n
+
+
+def _config_args(sp, default_help: str = "default: config.yaml") -> None:
+    from . import runconfig
+
+    runconfig.add_arguments(sp, default_help)
+
+
+def parser() -> argparse.ArgumentParser:
+    p = _Parser(prog="esnap", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    sub = p.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
 
     t = sub.add_parser("twin", help="the simulated rig outside Snakemake: record groups, or measure its phenomena")
     t.add_argument("action", choices=["acquire", "phenomena"])
-    t.add_argument("--config", default="config.yaml")
-    t.add_argument("--budget", choices=["paper", "quick", "smoke"])
+    _config_args(t)
     t.add_argument("--raw-dir")
     t.add_argument("--evidence-set", action="append", help="only these evidence sets (repeatable)")
-    t.add_argument("--jobs", type=int, default=2, help="processes to simulate in")
+    t.add_argument("--jobs", type=_positive, default=2, help="processes to simulate in")
     t.set_defaults(fn=cmd_twin)
 
     for name, fn, hlp in (
@@ -307,8 +480,7 @@ def main(argv: list[str] | None = None) -> int:
     ):
         v = sub.add_parser(name, help=hlp)
         v.add_argument("raw_dir", nargs="?", help="recording tree (default: config raw_data.dir)")
-        v.add_argument("--config", default="config.yaml", help="limits (gate:, raw_data:) and budget")
-        v.add_argument("--budget", choices=["paper", "quick", "smoke"], help="budget of the run (split sizes)")
+        _config_args(v, "default: config.yaml; its gate:, raw_data: and budget")
         v.add_argument("--source", choices=["rig", "twin"], default="rig" if name == "validate" else None,
                        help="plan from index.csv (rig) or from the budget (twin); seal: default from config")
         v.add_argument("--exclude", action="append", help="leave this group out, as raw_data.exclude (repeatable)")
@@ -318,11 +490,11 @@ def main(argv: list[str] | None = None) -> int:
     au.add_argument("result")
     au.add_argument("--root", default=".")
     au.add_argument("--json", action="store_true")
-    _config_args(au)
+    _config_args(au, "default: the config the last run recorded")
     au.set_defaults(fn=cmd_audit)
 
     cs = sub.add_parser("check-separation", help="prove the evidence-set separation (docs/design.md section 3)")
-    _config_args(cs)
+    _config_args(cs, "default: the config the last run recorded")
     cs.add_argument("--root", default=".")
     cs.add_argument("--no-static", action="store_true", help="skip the Snakemake DAG check")
     cs.add_argument("--no-records", action="store_true", help="skip the provenance-record check")
@@ -343,11 +515,11 @@ def main(argv: list[str] | None = None) -> int:
     d = sub.add_parser("deploy", help="run one open-loop trial of the deployment manifest on the servos")
     d.add_argument("--manifest", default="results/deployment/manifest.json")
     d.add_argument("--port", help="serial port of the servo bus, e.g. /dev/ttyUSB0")
-    d.add_argument("--baud", type=int, help="default: the manifest's (1000000)")
+    d.add_argument("--baud", type=int, help="default: the manifest's (1000000); one the XM430 supports")
     tg = d.add_mutually_exclusive_group()
-    tg.add_argument("--target", help="x,y,z of the target in the base frame (m)")
+    tg.add_argument("--target", help="x,y,z of the target in the base frame (m); --target=-0.1,... when x < 0")
     tg.add_argument("--target-from-mocap", help="JSON file {target_m: [x, y, z]} exported by the mocap system")
-    d.add_argument("--placement", type=int,
+    d.add_argument("--placement", type=int, metavar="K",
                    help="which of the manifest's placements (1-based) the block stands at: recorded for Table II, "
                         "and the target unless --target or --target-from-mocap gives the measured one")
     d.add_argument("--out", help="recording tree to write the trial into (groups/<id>/, aborted/)")
@@ -358,8 +530,8 @@ def main(argv: list[str] | None = None) -> int:
 
     di = sub.add_parser("deploy-index", help="index the deployment trials recorded in the lab (Table II, Fig. 7)")
     di.add_argument("--raw", help="the deployment recording tree (default: <raw_data.dir>/deployment)")
-    di.add_argument("--config", default="config.yaml", help="the workflow's config (its gate and raw_data.dir)")
-    di.add_argument("--planned", type=int, help="trials planned (default: those found); Table II's denominator")
+    _config_args(di, "default: config.yaml; its gate and raw_data.dir")
+    di.add_argument("--planned", type=_positive, help="trials planned (default: those found); Table II's denominator")
     di.set_defaults(fn=cmd_deploy_index)
 
     cl = sub.add_parser("claims", help="the claims ledger: every paper number beside ours, by section and status")
@@ -376,13 +548,84 @@ def main(argv: list[str] | None = None) -> int:
     cr.add_argument("--verify", action="store_true", help="check that every result file is in it with its sha256")
     cr.set_defaults(fn=cmd_crate)
 
+    bu = sub.add_parser("budget",
+                        help="switch raw_data/ and results/ to another budget's run (the current one is kept)")
+    bu.add_argument("name", nargs="?", help="paper, quick or smoke (default: config.yaml's budget)")
+    bu.add_argument("--show", action="store_true", help="print the budget raw_data/ and results/ hold, and stop")
+    _config_args(bu)
+    bu.set_defaults(fn=cmd_budget)
+
     rc = sub.add_parser("report-check", help="open the HTML report in headless Chromium: every figure and table shown")
     rc.add_argument("html", nargs="?", default="results/report.html")
     rc.add_argument("--screenshot", default="results/report.png")
     rc.set_defaults(fn=cmd_report_check)
+    return p
 
-    a = p.parse_args(argv)
-    return a.fn(a)
+
+def _config_last(argv: list[str]) -> list[str]:
+    """`--config K=V ...` moved to the end (before any `--`): it takes every K=V after it, and at
+    the end it cannot swallow a positional (`esnap audit --config budget=smoke RESULT`)."""
+    head, moved, i = [], [], 0
+    while i < len(argv):
+        if argv[i] == "--":
+            break
+        if argv[i] == "--config":
+            j = i + 1
+            while j < len(argv) and "=" in argv[j] and not argv[j].startswith("-"):
+                j += 1
+            moved += argv[i:j]
+            i = j
+        else:
+            head.append(argv[i])
+            i += 1
+    return head + moved + argv[i:]
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(str(e).split()) or type(e).__name__
+
+
+def main(argv: list[str] | None = None) -> int:
+    from .runconfig import ConfigError
+
+    argv = _config_last(list(sys.argv[1:] if argv is None else argv))
+    prog = "esnap"
+    try:
+        a = parser().parse_args(argv)
+        a.argv = ["esnap", *argv]  # the command as given, for a line that says how to ask again
+        prog = f"esnap {a.cmd}"
+        rc = a.fn(a)
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's exit
+        return rc
+    except UsageError as e:
+        print(f"{e.prog or prog}: error: {e}", file=sys.stderr)
+        return 2
+    except ConfigError as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # the reader has gone (`esnap claims | head`): what it read was all it wanted
+        _stdout_to_devnull()
+        return 141  # as a shell reports a process that SIGPIPE ended
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 -- a bug: one line here, the traceback on request
+        if os.environ.get("ESNAP_DEBUG") == "1":
+            raise
+        print(f"{prog}: internal error: {type(e).__name__}: {_one_line(e)} (ESNAP_DEBUG=1 shows the traceback)",
+              file=sys.stderr)
+        return 1
+
+
+def _stdout_to_devnull() -> None:
+    """So that the interpreter's last flush of stdout does not fail on the closed pipe too."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # not a real file (a test's capture): nothing to flush there
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
 
 
 if __name__ == "__main__":

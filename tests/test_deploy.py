@@ -501,7 +501,8 @@ def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
     cfg = yaml.safe_load((ROOT / "config.yaml").read_text())
     cfg["gate"]["max_servo_gap_s"] = 1.0
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
-    assert main(["deploy-index", "--raw", str(raw), "--config", str(tmp_path / "config.yaml"), "--planned", "4"]) == 0
+    assert main(["deploy-index", "--raw", str(raw), "--configfile", str(tmp_path / "config.yaml"),
+                 "--planned", "4"]) == 0
     assert pd.read_csv(raw / "index.csv").group_id.tolist() == [gid]
     ab = json.loads((raw / "aborted.json").read_text())
     causes = {a["group_id"]: a["cause"] for a in ab["aborted"]}

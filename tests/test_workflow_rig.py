@@ -24,7 +24,7 @@ def test_rig_source_builds_every_figure_without_the_twin(tmp_path):
         src = REPO / name
         (shutil.copytree if src.is_dir() else shutil.copy2)(
             src, tmp_path / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {}))
-    run([str(BIN / "esnap"), "twin", "acquire", "--budget", "smoke", "--raw-dir", "lab/recordings"], tmp_path)
+    run([str(BIN / "esnap"), "twin", "acquire", "--config", "budget=smoke", "--raw-dir", "lab/recordings"], tmp_path)
     run(["snakemake", "--cores", "2", "results/figures", *RIG], tmp_path)
     figs = sorted(p.name for p in (tmp_path / "results/figures").iterdir())
     assert {f"fig{k}" for k in (0, 2, 3, 4, 5)} <= {f.split("_")[0] for f in figs}

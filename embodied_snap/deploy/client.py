@@ -10,13 +10,24 @@ each cycle. Nothing read back changes a goal (open loop: Table II's "online corr
 Torque goes off in a `finally` on success, any error, a timeout, SIGINT or SIGTERM. Only a complete
 trial is written, in the rig recording format (docs/data.md); an aborted one leaves a one-line
 record under `aborted/`. Numpy, dynamixel-sdk and the standard library only.
+
+The loop holds its period on a busy PC (docs/deployment.md, "The control loop on a busy PC"): while
+the port is open the thread runs at real-time priority (SCHED_FIFO) where the OS permits it, else
+at a raised nice value, else as it is (saying so once on stderr); cycles start at absolute deadlines;
+the servo log is preallocated and filled in place, with the garbage collector paused, and written
+after the trial.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as _dt
+import gc
 import json
+import os
 import signal
+import sys
+import threading
 import time
 from pathlib import Path
 
@@ -40,6 +51,79 @@ PORT_ERRORS = (OSError, _TermiosError)
 DRAIN_SHARE = 0.25  # after a lost reply, wait this share of the reply timeout for it to land before
 # dropping it (5 ms at the lab's 20 ms): a lost reply and its retry then stay inside the gate's 50 ms
 # servo-log gap (cycle 10 + 20 + 5 + the retry), and a reply later still is not taken for the next one
+
+
+RT_PRIORITY = 40  # SCHED_FIFO priority of the loop: above every normal process, below the kernel's
+# interrupt threads (50 on a PREEMPT_RT kernel), which deliver the USB adapter's replies
+RAISED_NICE = -10  # without SCHED_FIFO: the scheduler weighs this thread ~10x a normal process
+_noticed = False  # the unprivileged notice is said once per process
+
+
+def _stderr(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)
+
+
+def realtime(priority: int = RT_PRIORITY, nice: int = RAISED_NICE, say=_stderr) -> str:
+    """Raise the calling thread (Linux: the policy and the nice value are per thread) for the control
+    loop: SCHED_FIFO at `priority` (reset in forked children), else nice `nice`. Returns "fifo",
+    "nice" or "normal". Without the permission, or with ESNAP_REALTIME=0 (to measure that case), it
+    still runs and says so once per process, in one line naming what to grant (say=None: silently)."""
+    global _noticed
+    got, why = "normal", "ESNAP_REALTIME=0"
+    if os.environ.get("ESNAP_REALTIME") != "0":
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(priority))
+            return "fifo"
+        except (OSError, AttributeError) as e:  # EPERM: no CAP_SYS_NICE and RLIMIT_RTPRIO too low; not Linux
+            why = f"SCHED_FIFO {priority}: {getattr(e, 'strerror', None) or 'not available'}"
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), nice)
+            got = "nice"
+        except (OSError, AttributeError):
+            pass
+    if say is not None and not _noticed:
+        _noticed = True
+        say(f"esnap deploy: runs unprivileged ({why}; {'nice ' + str(nice) if got == 'nice' else 'normal priority'}), "
+            f"so a busy PC can delay the control loop: allow real-time priority {priority} (ulimit -r {priority}, "
+            "an rtprio line in /etc/security/limits.d, or CAP_SYS_NICE; docs/deployment.md)")
+    return got
+
+
+@contextlib.contextmanager
+def raised_priority(say=_stderr):
+    """The calling thread raised (`realtime`) inside the block, restored after it."""
+    tid = threading.get_native_id()
+    try:
+        policy, param, nice = os.sched_getscheduler(0), os.sched_getparam(0), os.getpriority(os.PRIO_PROCESS, tid)
+    except (OSError, AttributeError):  # not Linux: nothing to restore
+        policy = None
+    try:
+        yield realtime(say=say)
+    finally:
+        if policy is not None:
+            with contextlib.suppress(OSError):  # keeps the reset-on-fork flag: clearing it needs CAP_SYS_NICE
+                os.sched_setscheduler(0, policy | os.SCHED_RESET_ON_FORK, param)
+            with contextlib.suppress(OSError):
+                os.setpriority(os.PRIO_PROCESS, tid, nice)
+
+
+class Deadlines:
+    """Cycle k starts at t0 + k * period on a monotonic clock. Absolute deadlines: a late cycle
+    shortens the next wait instead of moving every later cycle (sleeping one period per cycle would
+    drift by the cycle's own duration and every oversleep), and a cycle already due starts at once."""
+
+    def __init__(self, period: float, clock=time.monotonic, sleep=time.sleep):
+        self.period, self.clock, self.sleep = period, clock, sleep
+        self.t0 = clock()
+
+    def wait(self, k: int) -> None:
+        delay = self.t0 + k * self.period - self.clock()
+        if delay > 0:
+            self.sleep(delay)
+
+    def now(self) -> float:
+        """Seconds since t0."""
+        return self.clock() - self.t0
 
 
 def _sdk():
@@ -111,7 +195,10 @@ class Bus:
         a, n = reg
         fn = {1: self.ph.read1ByteTxRx, 2: self.ph.read2ByteTxRx, 4: self.ph.read4ByteTxRx}[n]
         for _ in range(self.retries + 1):  # a lost or garbled reply is asked again, then it aborts
-            value, result, error = fn(self.port, dxl_id, a)
+            try:
+                value, result, error = fn(self.port, dxl_id, a)
+            except IndexError:  # the SDK unpacked a shorter reply: a late one to another question
+                value, result, error = 0, self.dxl.COMM_RX_CORRUPT, 0
             if result == self.dxl.COMM_SUCCESS:
                 break
             self.drain()
@@ -144,18 +231,31 @@ class Bus:
         result = self.writer.txPacket()
         self._check("goal sync write", "all", result)
 
-    def sync_read(self) -> tuple[np.ndarray, np.ndarray]:
-        """Present position (ticks) and current (mA) of every servo; retried on a lost reply."""
+    def sync_read(self, pos=None, cur=None) -> tuple[np.ndarray, np.ndarray]:
+        """Present position (ticks) and current (mA) of every servo, into `pos` and `cur` when given
+        (the trial's preallocated log); retried on a lost reply, and on a reply of the wrong length (a
+        late reply to an earlier question, which the SDK takes for this one's)."""
         for attempt in range(self.retries + 1):
             result = self.reader.txRxPacket()
-            if result == self.dxl.COMM_SUCCESS:
+            short = self._short_reply() if result == self.dxl.COMM_SUCCESS else None
+            if result == self.dxl.COMM_SUCCESS and short is None:
                 break
             self.drain()
             if attempt == self.retries:
+                if short is not None:
+                    raise DeployError(f"garbled reply from servo {short} (present-state sync read: wrong length)")
                 self._check("present-state sync read", self._silent_servo(), result)
-        pos = [CT.signed(self.reader.getData(i, *CT.PRESENT_POSITION), 4) for i in self.ids]
-        cur = [CT.signed(self.reader.getData(i, *CT.PRESENT_CURRENT), 2) * CT.CURRENT_UNIT_MA for i in self.ids]
-        return np.array(pos, float), np.array(cur, float)
+        pos = np.empty(len(self.ids)) if pos is None else pos
+        cur = np.empty(len(self.ids)) if cur is None else cur
+        for j, i in enumerate(self.ids):
+            pos[j] = CT.signed(self.reader.getData(i, *CT.PRESENT_POSITION), 4)
+            cur[j] = CT.signed(self.reader.getData(i, *CT.PRESENT_CURRENT), 2) * CT.CURRENT_UNIT_MA
+        return pos, cur
+
+    def _short_reply(self):
+        """The first servo whose sync-read data is not PRESENT_BLOCK long, else None."""
+        n = CT.PRESENT_BLOCK[1]
+        return next((i for i in self.ids if len(self.reader.data_dict.get(i, ())) != n), None)
 
     def _silent_servo(self):
         """Which servo fails a sync read: ask each on its own, once."""
@@ -221,7 +321,9 @@ def _sigterm(signum, frame):
 
 def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray:
     """Play the schedule open loop; returns the servo log (T, 1 + 27): t, then goal, present,
-    current per servo. Every goal is in `goals` before this is called, and nothing here writes it."""
+    current per servo. Every goal is in `goals` before this is called, and nothing here writes it.
+    The log is allocated before the first cycle and filled in place; `on_cycle(k, t)`, if given,
+    runs inside the cycle and must not block."""
     assert not goals.flags.writeable, "the schedule must be frozen before the first byte moves the arm"
     ids = man["servos"]["ids"]
     period = 1.0 / float(man["servos"]["hz"])
@@ -231,25 +333,29 @@ def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray
     for i in ids:
         bus.write(i, CT.TORQUE_ENABLE, 1)
     log = np.empty((len(goals), 1 + 27))
-    t0 = time.monotonic()
-    for k, g in enumerate(goals):
-        delay = t0 + k * period - time.monotonic()
-        if delay > 0:
-            time.sleep(delay)
-        bus.sync_write(g)
-        pos, cur = bus.sync_read()
-        t = time.monotonic() - t0
-        i = ids[k % len(ids)]  # one servo's Hardware Error Status per cycle, round robin
-        err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
-        if err:  # latched on the servo: asked again after a drain, so a stray late reply cannot stop a trial
-            bus.drain()
+    per_servo = log[:, 1:].reshape(len(goals), 9, 3)  # a view: goal, present, current of each servo
+    per_servo[:, :, 0] = goals
+    gc_on = gc.isenabled()
+    gc.disable()  # a collection costs milliseconds at a random cycle; the trial allocates little
+    try:
+        clock = Deadlines(period)
+        for k in range(len(goals)):
+            clock.wait(k)
+            bus.sync_write(goals[k])
+            bus.sync_read(per_servo[k, :, 1], per_servo[k, :, 2])
+            t = log[k, 0] = clock.now()
+            i = ids[k % len(ids)]  # one servo's Hardware Error Status per cycle, round robin
             err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
-        if err:
-            raise DeployError(f"hardware error on servo {i}: status {err:#04x} at t = {t:.2f} s")
-        log[k, 0] = t
-        log[k, 1:].reshape(9, 3)[:] = np.stack([g, pos, cur], 1)
-        if on_cycle:
-            on_cycle(k, t)
+            if err:  # latched on the servo: asked again after a drain, so a stray late reply cannot stop a trial
+                bus.drain()
+                err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+            if err:
+                raise DeployError(f"hardware error on servo {i}: status {err:#04x} at t = {t:.2f} s")
+            if on_cycle:
+                on_cycle(k, t)
+    finally:
+        if gc_on:
+            gc.enable()
     return log
 
 
@@ -303,19 +409,20 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
               man["servos"]["reply_timeout_ms"])
     old = signal.signal(signal.SIGTERM, _sigterm)
     cause, log = None, None
-    try:
-        preflight(bus, man)
-        log = execute(bus, man, goals)
-    except DeployError as e:
-        cause = str(e)
-    except KeyboardInterrupt:
-        cause = "interrupted (SIGINT)"
-    except PORT_ERRORS as e:
-        cause = f"port closed or lost: {e}"
-    finally:
-        failed = bus.torque_off()
-        bus.close()
-        signal.signal(signal.SIGTERM, old)
+    with raised_priority():  # the whole time the arm may move, torque off included
+        try:
+            preflight(bus, man)
+            log = execute(bus, man, goals)
+        except DeployError as e:
+            cause = str(e)
+        except KeyboardInterrupt:
+            cause = "interrupted (SIGINT)"
+        except PORT_ERRORS as e:
+            cause = f"port closed or lost: {e}"
+        finally:
+            failed = bus.torque_off()
+            bus.close()
+            signal.signal(signal.SIGTERM, old)
     result = dict(trial, log=log, cause=cause, torque_off=not failed)
     if cause is not None:
         if out_dir is not None:

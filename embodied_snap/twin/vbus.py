@@ -11,6 +11,12 @@ where it is and refuses goals until 98 is cleared), EEPROM locking (operating mo
 limits are writable only with torque off), Hardware Error Status (70, with the alert bit in every
 status packet) behave as on the servo. Every goal received is logged (`goal_log`).
 
+The two threads are the servos' own microcontrollers, so they get the client's priority treatment
+(`client.realtime`, quietly: the client says once if it runs unprivileged): the bus thread runs
+just above the client's loop, the physics below it (it yields every slice, so it takes a small
+share of a core), which also keeps the physics from being preempted while it holds the GIL the
+bus thread waits for. Without the permission the physics runs niced instead.
+
 Faults (`faults`, all optional): no_reply {id, at_s}; bad_crc {at_s}; hw_error {id, at_s, bits};
 model {id, number}; eeprom {id}; close {at_s}. Times are on the trial clock.
 """
@@ -26,6 +32,7 @@ import tty
 import numpy as np
 
 from ..deploy import controltable as CT
+from ..deploy.client import RT_PRIORITY, realtime
 
 HEADER = b"\xff\xff\xfd\x00"
 BROADCAST = 0xFE
@@ -33,7 +40,9 @@ PING, READ, WRITE, STATUS, SYNC_READ, SYNC_WRITE = 0x01, 0x02, 0x03, 0x55, 0x82,
 ERR_ACCESS, ERR_CRC = 0x07, 0x03
 PHYSICS_SLICE_S = 0.002  # trial clock: the physics thread checks the watchdog and yields this often
 PHYSICS_YIELD_S = 0.0005  # wall clock: how long it yields each time
-PHYSICS_NICE = 5  # the physics thread's nice increment (Linux: per thread)
+PHYSICS_NICE = 5  # without real-time priority: the physics thread's nice increment (Linux: per thread)
+BUS_PRIORITY = RT_PRIORITY + 1  # SCHED_FIFO: a servo answers as soon as the client's packet is in
+PHYSICS_PRIORITY = RT_PRIORITY - 10  # below the client's loop and the bus thread
 
 
 def _crc_table():
@@ -176,6 +185,7 @@ class VirtualBus:
     def _serve(self) -> None:
         """Answer every packet as it arrives. The arm's physics runs in its own thread (`_physics`),
         so a reply never waits for the simulation to catch up."""
+        realtime(BUS_PRIORITY, say=None)
         buf = bytearray()
         while not self._stop.is_set():
             if self.closed:
@@ -199,11 +209,12 @@ class VirtualBus:
     def _physics(self) -> None:
         """Step the arm to the trial clock, in slices of PHYSICS_SLICE_S (the watchdog and the faults
         checked before each), and wait for the clock once it is caught up. On Linux a thread has its own
-        nice value: this one runs below the bus thread, so a busy machine delays the physics first."""
-        try:
-            os.nice(PHYSICS_NICE)
-        except OSError:
-            pass
+        scheduling: this one runs below the bus thread, so a busy machine delays the physics first."""
+        if realtime(PHYSICS_PRIORITY, nice=0, say=None) != "fifo":
+            try:
+                os.nice(PHYSICS_NICE)
+            except OSError:
+                pass
         while not self._stop.is_set():
             with self._lock:
                 t = self._tick()

@@ -1,0 +1,96 @@
+"""The run's config as Snakemake builds it, for the `esnap` commands that read it.
+
+The workflow's config.yaml, extended by `--configfile FILE` and `--config KEY=VALUE ...`, parsed
+and merged by Snakemake's own helpers, then validated against schemas/config.schema.yaml with Snakemake's
+`validate` (defaults filled in), as the Snakefile does: a command sees the config a run with the
+same arguments would see. Any error is one line (ConfigError), never the whole schema.
+Snakemake and yaml are imported inside the functions, so that the CLI's parser can use this module
+on the lab PC, where `esnap deploy` has numpy and dynamixel-sdk alone.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+SCHEMA = Path(__file__).resolve().parent.parent / "schemas" / "config.schema.yaml"
+DEFAULT = "config.yaml"
+
+
+class ConfigError(ValueError):
+    """The config cannot be used: one line naming the file or the key and the rule."""
+
+
+def add_arguments(parser, default_help: str = f"default: {DEFAULT}") -> None:
+    """The two options, as snakemake spells them. --config takes one or more KEY=VALUE (the CLI
+    moves them behind any positional, cli._config_last); given twice, both lists count."""
+    parser.add_argument("--configfile", metavar="FILE", help=f"the run's config file ({default_help})")
+    parser.add_argument("--config", nargs="+", action="extend", metavar="KEY=VALUE", default=[],
+                        help="config overrides, as for snakemake (YAML values, e.g. budget=smoke)")
+
+
+def overrides(entries) -> dict:
+    """--config KEY=VALUE ... as Snakemake parses it (snakemake.cli.parse_config)."""
+    from snakemake.cli import parse_config
+
+    try:
+        return parse_config(list(entries or []))
+    except ValueError as e:
+        raise ConfigError(f"--config: {e}") from None
+
+
+def schema_error(e: Exception) -> str:
+    """One line for a failed `snakemake.utils.validate` of the config: the key path and the rule
+    (jsonschema's message), e.g. `config: budget: 'x' is not one of ['paper', 'quick', 'smoke']`."""
+    import jsonschema
+
+    err = e
+    while err is not None and not isinstance(err, jsonschema.ValidationError):
+        err = err.__cause__ or err.__context__  # snakemake raises its error while handling jsonschema's
+    if err is None:
+        return f"config: {' '.join(str(e).split())}"
+    where = ".".join(str(k) for k in err.absolute_path)
+    return "config: " + (f"{where}: " if where else "") + " ".join(err.message.split())
+
+
+def validate(cfg: dict) -> dict:
+    """`cfg` checked against the schema as the Snakefile checks it (defaults filled in)."""
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import validate as smk_validate
+
+    try:
+        smk_validate(cfg, str(SCHEMA))
+    except WorkflowError as e:
+        raise ConfigError(schema_error(e)) from None
+    return cfg
+
+
+def _read(path: Path) -> dict:
+    from snakemake.common.configfile import load_configfile
+    from snakemake.exceptions import WorkflowError
+
+    if not path.is_file():
+        raise ConfigError(f"--configfile {path}: no such file")
+    try:
+        return load_configfile(str(path))
+    except (WorkflowError, OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"--configfile {path}: {' '.join(str(e).split())}") from None
+
+
+def load(configfile=None, entries=(), root=".") -> dict:
+    """The config of a run given `--configfile configfile --config entries...` in `root`: as
+    Snakemake merges them, the workflow's config.yaml, updated by the file, then by the entries."""
+    from snakemake.utils import update_config
+
+    if configfile is not None and not str(configfile).strip():
+        raise ConfigError("--configfile: empty path")
+    base = Path(root) / DEFAULT
+    cfg = _read(base) if base.is_file() or not configfile else {}
+    if configfile:
+        update_config(cfg, _read(Path(root) / configfile))
+    update_config(cfg, overrides(entries))
+    return validate(cfg)
+
+
+def given(a) -> bool:
+    """Whether the command line named a config (else audit and check-separation use the last run's)."""
+    return a.configfile is not None or bool(a.config)
