@@ -137,3 +137,19 @@ def test_placement_k_plans_placement_k(man_path):
         assert got["target"] == man["placements"][k - 1]["target_m"] and got["baud"] == man["servos"]["baud"]
     with pytest.raises(A.ArgumentError):
         A.placement(man, 0)
+
+
+def test_a_nan_target_is_outside_the_workspace(man_path):
+    """commands.commands read `np.any(g < lo)`, False for NaN: a NaN feature passed the box."""
+    with pytest.raises(client.C.RefusedTarget):
+        client.C.commands(_man(man_path), [float("nan"), -0.5, 0.2])
+
+
+@pytest.mark.parametrize("kw, rule", [(dict(placement=0), "placements 1..3"), (dict(baud=12345), "not a baud rate"),
+                                      (dict(placement=4), "placements 1..3")])
+def test_the_client_itself_refuses_before_the_port(man_path, kw, rule):
+    """client.run is the one door to the port (esnap deploy and the simulated rig's trials): it
+    checks placement and baud again, whoever calls it."""
+    target = _man(man_path)["placements"][0]["target_m"]
+    with pytest.raises(client.DeployError, match=rule):
+        client.run(man_path, "/dev/ttyUSB9", target, say=lambda *_: None, **kw)

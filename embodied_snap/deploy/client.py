@@ -389,11 +389,18 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     """One trial. Returns {commands, phases, goals, log, cause, torque_off}; raises DeployError
     (one line) when it refuses or aborts, after torque went off. `placement`: which of the manifest's
     placements the block stands at (recorded in the program; Table II counts placements)."""
+    from . import arguments as A  # it imports this module (DeployError)
+
     try:
         man = load(manifest)
         trial = C.plan(man, target)
     except (ManifestError, C.RefusedTarget) as e:
         raise DeployError(f"refused: {e}") from None
+    # The one door to the port (esnap deploy and the simulated rig's trials): what the command
+    # line checked is checked again here, before the port opens.
+    A.servo_ids(man)
+    A.placement(man, placement)
+    baud = A.baud(man, baud)
     cmd, goals = trial["commands"], trial["goals"]
     say("commands: " + ", ".join(f"{k} {v:.3f}" for k, v in cmd.items()))
     say(f"schedule: {len(goals)} goals at {man['servos']['hz']} Hz over {trial['t'][-1]:.2f} s; phases "
@@ -405,7 +412,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     if confirm is not None and not confirm():
         raise DeployError("refused: not confirmed by the operator")
     out_dir = Path(out) if out else None
-    bus = Bus(port, baud or man["servos"]["baud"], man["servos"]["ids"], man["servos"]["reply_retries"],
+    bus = Bus(port, baud, man["servos"]["ids"], man["servos"]["reply_retries"],
               man["servos"]["reply_timeout_ms"])
     old = signal.signal(signal.SIGTERM, _sigterm)
     cause, log = None, None

@@ -31,7 +31,7 @@ def commands(man: dict, target) -> dict:
     pc, rot = geometry.canonical(p, n, ws["phi0_deg"] + ws["delta_str_deg"])
     g = geometry.features(pc, n)
     lo, hi = (np.asarray(man["target_box"][k]) for k in ("lo", "hi"))
-    if np.any(g[0] < lo) or np.any(g[0] > hi):
+    if not np.all((g[0] >= lo) & (g[0] <= hi)):  # written so that a NaN is outside too
         raise RefusedTarget(f"target {np.round(p[0], 3).tolist()} outside the workspace: (d, e, r) = "
                             f"{np.round(g[0], 3).tolist()} m, allowed {np.round(lo, 3).tolist()} .. "
                             f"{np.round(hi, 3).tolist()}")
