@@ -1,5 +1,9 @@
 """Held-base trials: causal detectors of the base deformation against the labelled event."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import json
 import sys
 

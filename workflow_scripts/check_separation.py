@@ -2,6 +2,10 @@
 Missing records are not reported here (jobs beside this one may be rebuilding theirs right now);
 `esnap check-separation` after the run does."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import sys
 
 from embodied_snap.lineage.checks import check

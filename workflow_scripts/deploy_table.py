@@ -1,6 +1,10 @@
 """Table II (paper VI) from the deployment recordings, through the characterisation code, and the
 deployment claims beside the paper's values."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import json
 import sys
 

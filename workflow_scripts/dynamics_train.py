@@ -1,5 +1,9 @@
 """Eq. 3-4 for one seed: train on the training windows, select on the validation windows."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import sys
 
 import pandas as pd

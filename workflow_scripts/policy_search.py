@@ -1,6 +1,10 @@
 """One CMA-ES run: an architecture and an optimisation seed (paper IV-B/IV-C); or such a run continued
 to a larger budget (input `resume`: the run and its CMA-ES state)."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import json
 import sys
 

@@ -2,6 +2,10 @@
 
 Recordings are source data: written read-only, like Snakemake's protected outputs."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import os
 import sys
 

@@ -1,5 +1,9 @@
 """index.csv against the group folders (ids, sets, files, row counts)."""
 
+from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
+
+# isort: split
+
 import sys
 from pathlib import Path
 

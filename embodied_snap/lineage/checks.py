@@ -196,6 +196,16 @@ def by_source(violations: list[str]) -> tuple[dict[str, list[str]], list[str]]:
 # --- on the records --------------------------------------------------------------------------------
 
 
+def _used(r: dict, raw: str) -> tuple[list[str], list[str]]:
+    """A record's declared inputs, and the data files its job opened without declaring them (a job
+    forced past its own check, records.check_declared): such a read feeds the job all the same."""
+    ins = [e["path"] for e in r.get("inputs", [])]
+    own = set(ins) | {e["path"] for e in r.get("outputs", [])} | set(r.get("log") or [])
+    extra = [p for p in r.get("reads") or [] if p not in own and not p.startswith(RECORDS_DIR + "/")
+             and (p.startswith("results/") or p.startswith(raw + "/"))]
+    return ins, extra
+
+
 def _record_violations(root: Path, groups: dict, raw: str, complete: bool) -> tuple[list[str], dict]:
     errors: list = []
     by_output = load_records(root, errors)
@@ -218,8 +228,8 @@ def _record_violations(root: Path, groups: dict, raw: str, complete: bool) -> tu
             return
         r = recs[key]
         f, v, t = {}, {}, set()  # sources fed, the direct input that carried each, sources reported
-        for e in r.get("inputs", []):
-            p = e["path"]
+        ins, extra = _used(r, raw)
+        for p in ins + extra:
             go, fs = group_of(p, raw), file_source(p, raw)
             if go or fs:
                 g = go[0] if go else fs
@@ -261,11 +271,14 @@ def _record_violations(root: Path, groups: dict, raw: str, complete: bool) -> tu
             visit(key)
     # Nothing but the readers reads a file source, bookkeeping included.
     for key, r in sorted(recs.items()):
-        for e in r.get("inputs", []):
-            src = file_source(e["path"], raw)
+        ins, extra = _used(r, raw)
+        for p in ins + extra:
+            src = file_source(p, raw)
             if src and r["rule"] not in P.POLICY[src].readers:
                 out.append(f"separation (records): {_rart(r, key)} "
-                           f"(rule {r['rule']}) read {e['path']}; {RULE}: {P.POLICY[src].rule}")
+                           f"(rule {r['rule']}) read {p}; {RULE}: {P.POLICY[src].rule}")
+        out += [f"separation (records): {_rart(r, key)} (rule {r['rule']}) read {p}, not among its declared "
+                "inputs; rule: a job reads only what it declares" for p in extra]
     return out + sorted(missing), dict(records=len(recs))
 
 

@@ -10,7 +10,10 @@ line: every run checks its own declarations.
 
 Reads are seen through Python's audit hook (the `open` event): `open`, `json`, `np.load`,
 `torch.load`, pandas' csv reader, and parquet through `embodied_snap.io` (pyarrow's own C++ reads
-are invisible to the hook, hence that one reader).
+are invisible to the hook, hence that one reader). In a Snakemake job the hook is installed when
+this module is imported, by the first statement of every workflow script
+(`from embodied_snap.lineage import records`), so a read at the script's top level or in a package
+module's import is seen and checked like one inside `tracked()`.
 
 Records are not Snakemake outputs: they describe jobs, they are not data. `esnap audit`,
 `esnap check-separation` and the PROV export read only these records (and the files on disk).
@@ -235,8 +238,12 @@ def _script_path(root: Path) -> str | None:
 
 # --- what a job really touched -----------------------------------------------------------------
 
-_opened: set[str] | None = None  # paths opened for reading while a tracked job runs
+_opened: set[str] | None = None  # paths opened for reading while a job is watched
 _hooked = False
+_early: list[str] = []  # package modules a job had loaded before its watch began
+# The first statement of every workflow script (tests/test_watch.py): importing this module in a job
+# starts the watch, before anything else of the script runs.
+WATCH_IMPORT = "from embodied_snap.lineage import records"
 
 
 def _audit(event: str, args: tuple) -> None:
@@ -255,21 +262,30 @@ def _audit(event: str, args: tuple) -> None:
 
 
 def _watch() -> None:
+    """Start collecting reads; a watch already running (started at import in a job) keeps what
+    it saw since."""
     global _opened, _hooked
     if not _hooked:
         sys.addaudithook(_audit)  # hooks cannot be removed; _opened = None turns it off
         _hooked = True
-    _opened = set()
+    if _opened is None:
+        _opened = set()
 
 
 def _stop_watching(root: Path) -> list[str]:
     """Files under root the job opened for reading (relative paths), data only."""
     global _opened
     opened, _opened = _opened or set(), None
+    base = os.path.join(str(root.resolve()), "")
     out = set()
     for p in opened:
-        rel = _rel(os.path.abspath(p), root)
-        if rel.startswith("../") or rel.startswith(_NOT_DATA) or any(c.startswith(".") for c in rel.split("/")):
+        # a prefix test, not relpath: a job watched from its start opens a few thousand files
+        # (its imports), nearly all outside root or under .venv
+        a = os.path.abspath(p)
+        if not a.startswith(base):
+            continue
+        rel = a[len(base):].replace(os.sep, "/")
+        if rel.startswith(_NOT_DATA) or any(c.startswith(".") for c in rel.split("/")):
             continue
         out.add(rel)
     return sorted(out)
@@ -305,6 +321,14 @@ def check_declared(rule: str, declared: list[str], reads: list[str], modules: li
                                   "(rule: code inputs are the script's imports, lineage/imports.py)")
 
 
+def check_watched(rule: str) -> None:
+    """Fail (one line) if a package module was loaded before the watch began: its import-time
+    reads went unseen (only Snakemake's preamble runs before a script's first statement)."""
+    if _early:
+        raise UndeclaredInput(f"{_early[0]}: loaded by rule {rule} before its reads were watched (rule: a "
+                              f"workflow script's first statement is `{WATCH_IMPORT}`, docs/lineage.md)")
+
+
 @contextmanager
 def tracked(smk, root=".", check_modules: bool = True):
     """Wrap a workflow script's work: `with tracked(snakemake): ...`.
@@ -334,6 +358,8 @@ def tracked(smk, root=".", check_modules: bool = True):
     modules = loaded_modules() if check_modules else []
     own = {_rel(p, root) for p in outputs + log}
     try:
+        if check_modules:
+            check_watched(smk.rule)
         check_declared(smk.rule, inputs + sorted(own), reads, modules, raw_dir_of(config))
     except UndeclaredInput as e:
         sys.exit(f"error: {e}")  # one line, in the job's log
@@ -378,3 +404,14 @@ def last_config(root=".", records: dict | None = None) -> dict | None:
         return None
     last = max(recs, key=lambda r: r.get("finished", ""))
     return json.loads((root / CONFIG_DIR / f"{last['config_sha256']}.json").read_text())
+
+
+def _in_job() -> bool:
+    # Snakemake's preamble defines `snakemake` in the script's namespace before its first line; no
+    # other process (pytest, esnap) has it, and none of them is watched from its start.
+    return hasattr(sys.modules.get("__main__"), "snakemake")
+
+
+if _in_job():
+    _early = loaded_modules()
+    _watch()
