@@ -47,11 +47,16 @@ def _index_budget(root: Path, config: dict, any_source: bool = False) -> str | N
     import pandas as pd
 
     from .plan import twin_plan
+    from .rawformat import RecordingError, raw_file
 
-    index = root / config["raw_data"]["dir"] / "index.csv"
-    if not (any_source or config["raw_data"]["source"] == "twin") or not index.exists():
-        return None
-    ids = set(pd.read_csv(index, usecols=["group_id"]).group_id)
+    raw = root / config["raw_data"]["dir"]
+    try:
+        index = raw_file(raw, "index.csv")  # a link out of the raw tree is the gate's to refuse, unread
+        if not (any_source or config["raw_data"]["source"] == "twin") or not index.is_file():
+            return None
+        ids = set(pd.read_csv(index, usecols=["group_id"]).group_id)
+    except (RecordingError, ValueError, UnicodeDecodeError, OSError):
+        return None  # no budget's: what is wrong with it, the gate says next
     for name, b in config["budgets"].items():
         if set(twin_plan(b["groups"], config["sessions"]).group_id) == ids:
             return name

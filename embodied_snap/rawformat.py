@@ -106,31 +106,61 @@ class RecordingError(ValueError):
         return (type(self), (self.path, self.group_id, self.what, self.rule))
 
 
+# The raw directory is closed: every file the gate or a job opens under it must really be there.
+# A symlink that stays inside is allowed (a deduplicated store under raw_data/); one that leads out
+# (a file, a group folder, groups/ itself) is refused before anything is opened, so the bytes the
+# gate checked are the raw directory's and nothing elsewhere (/etc/passwd) is ever read.
+FILE_RULE = "file inside the raw directory"
+FOLDER_RULE = "group folder inside the raw directory"
+
+
 @functools.lru_cache(maxsize=64)
-def _real(path: str) -> Path:
-    return Path(path).resolve()
+def _real_dir(cwd: str, path: str) -> str:
+    return os.path.join(os.path.realpath(os.path.join(cwd, path)), "")
+
+
+def _outside(path: Path, raw_dir) -> str | None:
+    """Where a link really leads, if that is outside raw_dir (None: it stays inside)."""
+    real = os.path.realpath(path)
+    return None if real.startswith(_real_dir(os.getcwd(), str(raw_dir))) else real
+
+
+def raw_file(raw_dir: str | Path, name: str, group_id: str = "-") -> Path:
+    """`<raw_dir>/<name>` (index.csv, sealed.json), refused if it resolves outside raw_dir."""
+    p = Path(raw_dir) / name
+    real = _outside(p, raw_dir) if os.path.islink(p) else None
+    if real:
+        raise RecordingError(p, group_id, f"a link to {real}, outside {raw_dir}", FILE_RULE)
+    return p
 
 
 def group_dir(raw_dir: str | Path, group_id: str) -> Path:
     """A group's folder. Ids are names, not paths: whatever an id holds (`..`, `/etc`, a
-    symlinked folder), the folder must resolve inside `<raw_dir>/groups`, or nothing is read."""
+    symlinked folder), the folder must resolve inside `raw_dir`, or nothing is read."""
     root = Path(raw_dir) / "groups"
-    d = root / str(group_id)
-    real_root = _real(str(root))
     gid = str(group_id)
-    # a plain name whose folder is not a link resolves under the real root; anything else in full
-    plain = gid not in ("", ".", "..") and "/" not in gid and os.sep not in gid and not d.is_symlink()
-    real = real_root / gid if plain else d.resolve()
-    if real.parent != real_root or real.name != gid:
-        raise RecordingError(
-            d, group_id, f"resolves to {real}, outside {root}", "group folder inside the raw directory"
-        )
+    d = root / gid
+    if gid in ("", ".", "..") or "/" in gid or os.sep in gid:  # ids are names, not paths
+        raise RecordingError(d, group_id, f"resolves to {d.resolve()}, not a folder of {root}", FOLDER_RULE)
+    # Plain folders (one lstat each) cannot lead out; a link is followed to its end.
+    real = _outside(d, raw_dir) if os.path.islink(root) or os.path.islink(d) else None
+    if real:
+        raise RecordingError(d, group_id, f"resolves to {real}, outside {raw_dir}", FOLDER_RULE)
     return d
 
 
 def group_paths(raw_dir: str | Path, group_id: str) -> dict[str, Path]:
+    """A group's three files, each refused if it resolves outside raw_dir. Checked here, so every
+    reader (the gate, the jobs: resampling, the fits) gets only paths that stay inside."""
     d = group_dir(raw_dir, group_id)
-    return {name.split(".")[0]: d / name for name in GROUP_FILES}
+    out = {}
+    for name in GROUP_FILES:
+        p = d / name
+        real = _outside(p, raw_dir) if os.path.islink(p) else None  # inside a checked folder
+        if real:
+            raise RecordingError(p, group_id, f"a link to {real}, outside {raw_dir}", FILE_RULE)
+        out[name.split(".")[0]] = p
+    return out
 
 
 def _atomic(path: Path, write) -> None:

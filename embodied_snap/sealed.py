@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from .rawformat import GROUP_FILES, RecordingError, group_dir, write_json
+from .rawformat import GROUP_FILES, RecordingError, group_paths, raw_file, write_json
 
 RECORD = "sealed.json"
 RULE = "sealed set is fixed; re-seal with `esnap seal` if intended"
@@ -31,12 +31,12 @@ def current(raw_dir, plan: pd.DataFrame) -> dict:
     """The sealed set of this plan as it would be recorded."""
     out = {}
     for r in plan[plan.role == "sealed"].sort_values("group_id").itertuples():
-        d = group_dir(raw_dir, r.group_id)
+        paths = dict(zip(GROUP_FILES, group_paths(raw_dir, r.group_id).values()))
         out[r.group_id] = dict(
             evidence_set=r.evidence_set,
             category=r.category,
             role=r.role,
-            sha256={f: _sha256(d / f) for f in GROUP_FILES if (d / f).exists()},
+            sha256={f: _sha256(p) for f, p in paths.items() if p.exists()},
         )
     return out
 
@@ -47,7 +47,7 @@ def record_path(raw_dir) -> Path:
 
 def check(raw_dir, plan: pd.DataFrame) -> None:
     """Raise a one-line RecordingError if the sealed set differs from its record (none: pass)."""
-    path = record_path(raw_dir)
+    path = raw_file(raw_dir, RECORD)  # a link out is refused before it is opened
     if not path.exists():
         return
     try:
@@ -73,7 +73,7 @@ def check(raw_dir, plan: pd.DataFrame) -> None:
         for f, h in rec[gid]["sha256"].items():
             if cur["sha256"].get(f) != h:
                 raise RecordingError(
-                    group_dir(raw_dir, gid) / f, gid, "recording of a sealed group changed", RULE
+                    group_paths(raw_dir, gid)[f.split(".")[0]], gid, "recording of a sealed group changed", RULE
                 )
 
 

@@ -24,6 +24,7 @@ from .rawformat import (
     GROUP_FILES,
     RecordingError,
     group_paths,
+    raw_file,
 )
 from .rawschema import (
     COVER_TOL_S,
@@ -327,7 +328,7 @@ def validate_group(
 def read_index(raw_dir, pattern: str = GROUP_ID_PATTERN) -> pd.DataFrame:
     """index.csv as a table of strings (counts as int), or a one-line RecordingError: missing,
     empty, unreadable, wrong columns, bad or duplicate ids, unknown sets or categories."""
-    path = Path(raw_dir) / "index.csv"
+    path = raw_file(raw_dir, "index.csv")  # a link out is refused before it is opened
     if not path.is_file():
         raise RecordingError(path, "-", "missing", "raw_data/index.csv lists every group")
     try:

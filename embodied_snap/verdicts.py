@@ -64,27 +64,40 @@ class Verdicts:
             write_json({"version": self.version, "passed": self.passed}, self.path)
 
 
-def index_rows(raw_dir, plan, pattern: str, use_index: bool = True) -> dict:
-    """What each group must agree with: its index.csv row, or (use_index False, or before its
-    index.csv is written) its plan row."""
+def index_rows(raw_dir, plan, pattern: str) -> dict:
+    """What each group must agree with: its index.csv row, or its plan row while no index.csv
+    exists (the simulated rig's first run writes it after recording, from the recordings)."""
     from .validate import read_index
 
     rows = {
         r["group_id"]: r for r in plan[["group_id", "evidence_set", "category", "session"]].to_dict("records")
     }
-    if use_index and (Path(raw_dir) / "index.csv").exists():
+    if (Path(raw_dir) / "index.csv").exists():
         rows.update({r["group_id"]: r for r in read_index(raw_dir, pattern).to_dict("records")})
     return rows
 
 
-def check_tree(config: dict, raw_dir):
-    """What the workflow checks before its DAG, all at once (`esnap validate`): the plan, every
-    group not excluded through the gate, the sealed set against its record. Returns the plan."""
+def gate_tree(config: dict, raw_dir, cache=None, recorded=None):
+    """The gate before any DAG, one function for the workflow (rules/common.smk) and `esnap
+    validate` (check_tree), with the same inputs whatever the source: the plan (index.csv, ids,
+    folders, exclusions), every recorded group not excluded against its index.csv row (row
+    counts included), then the sealed set against its record. `recorded(shard)` says whether a
+    shard is on disk yet (the simulated rig records during the run; the workflow judges the rest
+    when its acquisition completes); None: every shard. Returns (plan, verdicts)."""
     from . import sealed
     from .plan import load_plan
 
     plan = load_plan(config, raw_dir)
     limits = Limits.from_config(config)
-    Verdicts(raw_dir, limits, index_rows(raw_dir, plan, limits.group_id_pattern), None).check(plan.group_id)
-    sealed.check(raw_dir, plan)
-    return plan
+    verdicts = Verdicts(raw_dir, limits, index_rows(raw_dir, plan, limits.group_id_pattern), cache)
+    on_disk = plan if recorded is None else plan[[bool(recorded(s)) for s in plan.shard]]
+    verdicts.check(on_disk.group_id)
+    if recorded is None or all(recorded(s) for s in plan[plan.role == "sealed"].shard.unique()):
+        sealed.check(raw_dir, plan)
+    return plan, verdicts
+
+
+def check_tree(config: dict, raw_dir):
+    """`esnap validate`: exactly what the workflow checks before its DAG (gate_tree), on every
+    group. Returns the plan."""
+    return gate_tree(config, raw_dir)[0]

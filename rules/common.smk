@@ -9,20 +9,27 @@ sys.path.insert(0, workflow.basedir)
 from dataclasses import asdict
 from pathlib import Path
 
-from embodied_snap import protocol
+from embodied_snap import budget, protocol
 from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
 from embodied_snap.lineage.groups import deployment_dir
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.paper.sections import category as category_of
-from embodied_snap.plan import PlanError, load_plan
+from embodied_snap.plan import PlanError
 from embodied_snap.rawformat import RecordingError, group_paths
-from embodied_snap.validate import Limits
-from embodied_snap.verdicts import Verdicts, index_rows
+from embodied_snap.verdicts import gate_tree
 
 RAW = config["raw_data"]["dir"]
 BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
+
+# raw_data/ and results/ hold one budget's run at a time (docs/design.md, "Budgets"): asking for
+# another stops here with exactly one line (no WorkflowError frame around it), naming both
+# budgets and the commands that fit.
+try:
+    budget.claim(config, argv=sys.argv)
+except budget.BudgetError as e:
+    sys.exit(f"error: {e}")
 
 # A protocol some stage cannot run stops the workflow here, in one line naming the stage.
 UNSUPPORTED = protocol.unsupported(config)
@@ -35,15 +42,25 @@ def protocol_params(*sections):
     return protocol.params(config, *sections)
 
 
+def _acquired(shard):
+    return not TWIN or Path(f"results/twin/acquired/{shard}.json").exists()
+
+
 # The plan and the gate decide before the DAG exists (docs/data.md, "The gate"): a broken
 # index.csv, a bad id, a stray folder or a broken recording stops the run with one line, and no
 # job runs, so nothing under results/ changes until the user fixes the file or excludes the
-# group (--config raw_data='{exclude: [id]}').
+# group (--config raw_data='{exclude: [id]}'). It is `esnap validate`'s function with the same
+# inputs, with either rig: every recording already on disk is judged now, against its index.csv
+# row once index.csv exists; with the simulated rig, a shard recorded during this run is judged
+# when its acquisition checkpoint completes (shard_raw, raw_of).
 try:
-    PLAN = load_plan(config, RAW)
+    PLAN, GATE = gate_tree(
+        config, RAW, ".snakemake/esnap/gate.json", recorded=_acquired
+    )
 except (PlanError, RecordingError) as e:
     raise WorkflowError(f"error: {e}") from None
 EXCLUDED = PLAN.attrs["excluded"]
+LIMITS = GATE.limits
 
 SHARDS = {s: list(g.group_id) for s, g in PLAN.groupby("shard", sort=True)}
 ROLE_SHARDS = {
@@ -52,38 +69,12 @@ ROLE_SHARDS = {
 }
 
 
-LIMITS = Limits.from_config(config)
-# With the simulated rig, index.csv is written during the run from the recordings themselves:
-# verdicts keyed by the plan's rows stay valid from one run to the next (each shard's job still
-# checks its groups' row counts against index.csv).
-GATE = Verdicts(
-    RAW,
-    LIMITS,
-    index_rows(RAW, PLAN, LIMITS.group_id_pattern, use_index=not TWIN),
-    ".snakemake/esnap/gate.json",
-)
-
-
 def gate(gids):
     """The gate's verdict on these groups; a rejection stops the run with one line."""
     try:
         GATE.check(gids)
     except RecordingError as e:
         raise WorkflowError(f"error: {e}") from None
-
-
-def _acquired(shard):
-    return not TWIN or Path(f"results/twin/acquired/{shard}.json").exists()
-
-
-# Every recording already on disk is judged now, before any job; with the simulated rig, a shard
-# recorded during this run is judged when its acquisition checkpoint completes (shard_raw, raw_of).
-gate([g for s, gids in SHARDS.items() if _acquired(s) for g in gids])
-try:
-    if all(_acquired(s) for s in ROLE_SHARDS["sealed"]):
-        sealed.check(RAW, PLAN)
-except RecordingError as e:
-    raise WorkflowError(f"error: {e}") from None
 
 
 def reads_recordings(wildcards, input):

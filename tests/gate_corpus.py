@@ -7,13 +7,53 @@ None for a benign kind that must pass.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+
+_OPENS: list[str] | None = None
+
+
+def _audit(event, args):
+    if event == "open" and _OPENS is not None and isinstance(args[0], (str, bytes, os.PathLike)):
+        _OPENS.append(os.fsdecode(os.path.realpath(args[0])))  # realpath only lstats: opens nothing
+
+
+@contextlib.contextmanager
+def opens():
+    """The real path of every file this process opens inside the block (Python's `open` audit
+    event: every reader of the package goes through it, parquet included, embodied_snap/io.py)."""
+    global _OPENS
+    if not getattr(_audit, "installed", False):
+        sys.addaudithook(_audit)  # once per process: an audit hook cannot be removed
+        _audit.installed = True
+    _OPENS = seen = []
+    try:
+        yield seen
+    finally:
+        _OPENS = None
+
+
+def outside_targets(raw) -> list[str]:
+    """Where each symlink under `raw` that leads outside it really points."""
+    top = os.path.realpath(raw)
+    out = []
+    for d, dirs, files in os.walk(raw):
+        for name in dirs + files:
+            real = os.path.realpath(os.path.join(d, name))
+            if os.path.islink(os.path.join(d, name)) and not real.startswith(top + os.sep):
+                out.append(real)
+    return out
+
+
+def opened_any(seen, targets) -> list[str]:
+    return [p for p in seen if any(p == t or p.startswith(t + os.sep) for t in targets)]
 
 
 def _replace(path: Path, write) -> None:
@@ -185,6 +225,58 @@ def symlinked_outside(gid):
         shutil.copytree(Path(raw) / "groups" / gid, out)
         shutil.rmtree(Path(raw) / "groups" / gid)
         (Path(raw) / "groups" / gid).symlink_to(out.resolve())
+
+    return apply
+
+
+def linked_outside(gid, which):
+    """One file of a group replaced by a symlink to a byte-identical copy outside the raw directory."""
+
+    def apply(raw):
+        import shutil
+
+        p = _files(raw, gid)["mocap servo meta".split().index(which)]
+        out = Path(raw).parent / f"outside_{gid}"
+        out.mkdir()
+        shutil.copy2(p, out / p.name)
+        p.unlink()
+        p.symlink_to((out / p.name).resolve())
+
+    return apply
+
+
+def linked_to(gid, which, target):
+    """One file of a group replaced by a symlink to `target` (e.g. /etc/passwd)."""
+
+    def apply(raw):
+        p = _files(raw, gid)["mocap servo meta".split().index(which)]
+        p.unlink()
+        p.symlink_to(target)
+
+    return apply
+
+
+def groups_outside(raw):
+    """groups/ itself moved outside the raw directory and linked back (every folder then leads out)."""
+    import shutil
+
+    out = Path(raw).parent / "outside_groups"
+    shutil.copytree(Path(raw) / "groups", out, symlinks=True)
+    shutil.rmtree(Path(raw) / "groups")
+    (Path(raw) / "groups").symlink_to(out.resolve())
+
+
+def linked_inside(gid, which):
+    """One file moved to a store inside the raw directory and linked back: it stays inside."""
+
+    def apply(raw):
+        import shutil
+
+        p = _files(raw, gid)["mocap servo meta".split().index(which)]
+        store = Path(raw) / ".store"
+        store.mkdir(exist_ok=True)
+        shutil.move(p, store / f"{gid}_{p.name}")
+        p.symlink_to(Path("..", "..", ".store", f"{gid}_{p.name}"))
 
     return apply
 
@@ -373,6 +465,16 @@ CORPUS = {
         symlinked_outside("hb_0001"),
         ("", "hb_0001", "group folder inside the raw directory"),
     ),
+    # the raw directory is closed: a link out is refused before its target is opened
+    "mocap linked to a copy outside": (
+        linked_outside("att_0003", "mocap"),
+        (M, "att_0003", "file inside the raw directory"),
+    ),
+    "meta.json linked to /etc/passwd": (
+        linked_to("rel_0001", "meta", "/etc/passwd"),
+        (J, "rel_0001", "file inside the raw directory"),
+    ),
+    "groups/ linked outside": (groups_outside, ("", "att_0001", "group folder inside the raw directory")),
     # the sealed set
     "sealed group relabelled free_space": (
         relabel_sealed("dyn_0007", "free_space"),
@@ -391,5 +493,13 @@ CORPUS = {
     "extra label": (set_label("dyn_0003", "operator_ok", True), None),
     "index.csv rows shuffled": (index(lambda i: i.sample(frac=1, random_state=1)), None),
     "hidden files in groups/": (hidden_things, None),
+    "servo.parquet linked inside the raw directory": (linked_inside("dyn_0004", "servo"), None),
 }
 BENIGN = [k for k, (_, want) in CORPUS.items() if want is None]
+
+# With the simulated rig (raw_data.source twin) the plan comes from the budget, and index.csv must
+# agree with it: these kinds break that rule first. Every other kind gets the same line either way.
+TWIN = {
+    "index row without files": (I, "att_0098", "index.csv matches the simulated rig's plan"),
+    "sealed group relabelled free_space": (I, "dyn_0007", "index.csv matches the simulated rig's plan"),
+}

@@ -189,3 +189,19 @@ def test_switching_budgets_needs_no_delete_and_rebuilds_nothing(tmp_path):
     r = sh(tmp_path, "snakemake", "-n", "--cores", "2", *part, "--config", "budget=smoke")
     assert r.returncode == 0 and "Nothing to be done" in r.stdout + r.stderr, r.stdout[-3000:]
     assert (tmp_path / ".budgets/quick/raw_data/sealed.json").exists()
+
+
+@pytest.mark.parametrize("text", [b"", b"\x00\xff\xfe binary", b"no,group_id,column\n1,2,3\n"])
+def test_a_broken_index_is_no_budgets_and_left_to_the_gate(tmp_path, text):
+    (tmp_path / "raw_data").mkdir()
+    (tmp_path / "raw_data/index.csv").write_bytes(text)
+    budget.check_tree(cfg(), tmp_path / "raw_data")
+    assert budget.active(cfg(), tmp_path) is None
+
+
+def test_an_index_linked_out_is_never_read(tmp_path):
+    outside = tmp_path / "elsewhere.csv"
+    outside.write_text("group_id\n" + "\n".join(twin_plan(CFG["budgets"]["smoke"]["groups"], CFG["sessions"]).group_id))
+    (tmp_path / "raw_data").mkdir()
+    (tmp_path / "raw_data/index.csv").symlink_to(outside)
+    budget.check_tree(cfg(), tmp_path / "raw_data")  # a smoke index, but outside: not read, so no line

@@ -153,3 +153,33 @@ def test_the_client_itself_refuses_before_the_port(man_path, kw, rule):
     target = _man(man_path)["placements"][0]["target_m"]
     with pytest.raises(client.DeployError, match=rule):
         client.run(man_path, "/dev/ttyUSB9", target, say=lambda *_: None, **kw)
+
+
+OPENED: list[str] | None = None
+
+
+def _watch_opens(event, args):
+    if event == "open" and OPENED is not None:
+        OPENED.append(str(args[0]))
+
+
+def test_a_lab_trial_linked_out_of_its_tree_is_listed_unread(tmp_path):
+    """`esnap deploy-index`: a trial whose meta.json is a link out of the deployment tree is listed
+    with the gate's rule as its cause, and the file it points at is never opened."""
+    import sys
+
+    from embodied_snap.deploy import trials as T
+
+    global OPENED
+    secret = tmp_path / "secret.json"
+    secret.write_text("{}")
+    (tmp_path / "dep/groups/dep_0001").mkdir(parents=True)
+    (tmp_path / "dep/groups/dep_0001/meta.json").symlink_to(secret)
+    sys.addaudithook(_watch_opens)  # hooks cannot be removed: it records only while OPENED is a list
+    OPENED = []
+    try:
+        found = T.lab_trials(tmp_path / "dep")
+    finally:
+        seen, OPENED = OPENED, None
+    assert [r["group_id"] for r in found] == ["dep_0001"] and "outside" in found[0]["cause"], found
+    assert str(secret) not in seen

@@ -252,3 +252,117 @@ def test_recording_read_once_is_the_file(raw):
     frame, data = R.load_recording(p, "dyn_0001")
     pd.testing.assert_frame_equal(frame, pd.read_parquet(p), check_exact=True)
     assert R.file_entry(p, data) == R.file_entry(p)
+
+
+# --- the raw directory is closed ------------------------------------------------------------
+
+
+def _link_out(raw, tmp_path, gid, name, target=None):
+    """Replace a group's file by a symlink out of the raw directory (to a copy, or to `target`)."""
+    p = raw / "groups" / gid / name
+    if target is None:
+        target = tmp_path / "elsewhere" / name
+        target.parent.mkdir(exist_ok=True)
+        target.write_bytes(p.read_bytes())
+    p.unlink()
+    p.symlink_to(target)
+    return target
+
+
+@pytest.mark.parametrize("name", ["mocap.parquet", "servo.parquet", "meta.json"])
+def test_a_file_linked_out_is_refused_before_it_is_opened(raw, tmp_path, name):
+    from gate_corpus import opened_any, opens
+
+    target = _link_out(raw, tmp_path, "dyn_0002", name)
+    rule = r"\(rule: file inside the raw directory\)$"
+    with opens() as seen:
+        with pytest.raises(RecordingError, match=rf"groups/dyn_0002/{name}: group dyn_0002: a link to .*{rule}"):
+            Verdicts(raw, Limits(), {}, None).check(["dyn_0001", "dyn_0002"])
+        with pytest.raises(RecordingError, match=rule):
+            group_paths(raw, "dyn_0002")  # so no job is handed the path either
+    assert seen and not opened_any(seen, [str(target.resolve())])
+
+
+def test_a_link_to_etc_passwd_is_never_read(raw, tmp_path):
+    from gate_corpus import opened_any, opens
+
+    _link_out(raw, tmp_path, "dyn_0001", "meta.json", target=Path("/etc/passwd"))
+    with opens() as seen, pytest.raises(RecordingError, match="a link to /etc/passwd, outside"):
+        validate_group(raw, "dyn_0001")
+    assert not opened_any(seen, [os.path.realpath("/etc/passwd")])
+
+
+def test_groups_folder_linked_out_is_refused(raw, tmp_path):
+    import shutil
+
+    shutil.move(raw / "groups", tmp_path / "moved")
+    (raw / "groups").symlink_to(tmp_path / "moved")
+    with pytest.raises(RecordingError, match=r"group dyn_0001: resolves to .*moved/dyn_0001, outside .*"
+                       r"\(rule: group folder inside the raw directory\)$"):
+        group_paths(raw, "dyn_0001")
+
+
+def test_index_and_sealed_record_linked_out_are_refused(raw, tmp_path):
+    from gate_corpus import opened_any, opens
+
+    from embodied_snap.validate import read_index
+
+    for name in ("index.csv", "sealed.json"):
+        target = tmp_path / "elsewhere" / name
+        target.parent.mkdir(exist_ok=True)
+        target.write_text("group_id\n" if name == "index.csv" else '{"groups": {}}')
+        (raw / name).unlink(missing_ok=True)
+        (raw / name).symlink_to(target)
+        with opens() as seen, pytest.raises(RecordingError, match=rf"{name}: group -: a link to .*outside"):
+            read_index(raw) if name == "index.csv" else sealed.check(raw, _plan([("dyn_0001", "sealed")]))
+        assert not opened_any(seen, [str(target.resolve())])
+
+
+def test_a_link_that_stays_inside_is_allowed(raw):
+    p = raw / "groups" / "dyn_0001" / "servo.parquet"
+    (raw / ".store").mkdir()
+    p.rename(raw / ".store" / "servo.parquet")
+    p.symlink_to(Path("..", "..", ".store", "servo.parquet"))
+    validate_group(raw, "dyn_0001")
+    (raw / "groups" / "dyn_0002").rename(raw / ".store" / "dyn_0002")
+    (raw / "groups" / "dyn_0002").symlink_to(raw / ".store" / "dyn_0002")
+    validate_group(raw, "dyn_0002")
+
+
+# --- one gate in every mode -----------------------------------------------------------------
+
+
+def _twin_tree(tmp_path):
+    """Two recorded groups of a tiny simulated-rig budget (fakerig's, as the twin would name them)."""
+    from fakerig import write_fake_group
+
+    cfg = _cfg(dir=str(tmp_path / "raw_data"), source="twin")
+    cfg["budgets"]["tiny"] = {**cfg["budgets"]["smoke"], "groups": {"dynamics": {"free_space": 3}}}
+    cfg["budgets"]["tiny"]["split"] = {"validation": 1}
+    cfg["budget"] = "tiny"
+    rows = [
+        write_fake_group(tmp_path / "raw_data", g, seed=i, duration_s=3.0, session=f"s{i + 1:02d}")
+        for i, g in enumerate(("dyn_0001", "dyn_0002", "dyn_0003"))
+    ]
+    return cfg, tmp_path / "raw_data", rows
+
+
+def test_twin_row_counts_are_checked_once_index_csv_exists(tmp_path):
+    """The simulated rig's first run writes index.csv after recording; from then on, in that run's
+    successors, its row counts are the gate's like any rig's, the remembered passes included."""
+    from embodied_snap.rawformat import write_index
+    from embodied_snap.verdicts import check_tree, gate_tree
+
+    cfg, raw, rows = _twin_tree(tmp_path)
+    cache = tmp_path / "gate.json"
+    plan, _ = gate_tree(cfg, raw, cache)  # before index.csv: the plan's rows, passes remembered
+    assert sorted(plan.group_id) == ["dyn_0001", "dyn_0002", "dyn_0003"]
+    rows[1]["n_mocap"] += 1
+    write_index(rows, raw / "index.csv")
+    want = r"index.csv: group dyn_0002: n_mocap \d+ but mocap.parquet has \d+ rows \(rule: n_mocap matches"
+    with pytest.raises(RecordingError, match=want):
+        gate_tree(cfg, raw, cache)
+    with pytest.raises(RecordingError, match=want):
+        check_tree(cfg, raw)  # esnap validate: the same line
+    # a shard not recorded yet is judged when it is (the workflow's acquisition checkpoint)
+    gate_tree(cfg, raw, cache, recorded=lambda shard: False)

@@ -1,9 +1,11 @@
 """Every kind of tests/gate_corpus.py through both `esnap validate` and the workflow, on a copy of
-a finished smoke run read as a real rig's tree (`raw_data={source: rig}`).
+a finished smoke run of the simulated rig.
 
-For each kind: a broken one is rejected by both with the same single line (file, group, rule),
-the workflow stops before any job, and every file under results/ keeps its sha256; a benign one
-passes both. The raw tree is restored after each kind. One smoke run serves the module.
+For each kind, in both modes (the tree read as a real rig's, `raw_data={source: rig}`, and as
+the simulated rig's own): a broken one is rejected by both with the same single line (file,
+group, rule), the workflow stops before any job, and every file under results/ keeps its sha256;
+a benign one passes both. Neither opens the target of a link out of the raw directory. The raw
+tree is restored after each kind. One smoke run serves the module.
 """
 
 from __future__ import annotations
@@ -17,7 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from gate_corpus import BENIGN, CORPUS
+from gate_corpus import BENIGN, CORPUS, TWIN, opened_any, opens, outside_targets
 
 REPO = Path(__file__).resolve().parent.parent
 COPY = [
@@ -34,17 +36,49 @@ COPY = [
 ]
 BIN = Path(sys.executable).parent
 RIG = ["--config", "budget=smoke", "raw_data={source: rig, dir: raw_data}"]
+MODES = {"rig": RIG, "twin": ["--config", "budget=smoke"]}
+# Imported by the workflow's Python when on its PYTHONPATH: records every file it opens that lies
+# at or under one of the targets (a line "watching": the hook was installed).
+WATCH = """import os, sys
+_log, _of = os.environ["ESNAP_OPENS_LOG"], os.environ["ESNAP_OPENS_OF"].split(os.pathsep)
+open(_log, "a").write("watching\\n")
+def _hook(event, args):
+    if event == "open" and isinstance(args[0], (str, bytes, os.PathLike)):
+        real = os.fsdecode(os.path.realpath(args[0]))
+        if any(real == t or real.startswith(t + os.sep) for t in _of):
+            open(_log, "a").write(real + "\\n")
+sys.addaudithook(_hook)
+"""
 
 pytestmark = pytest.mark.slow
 
 
-def run(cmd, cwd):
-    env = {**os.environ, "PYTHONPATH": str(cwd), "PATH": f"{BIN}:{os.environ['PATH']}"}
+def run(cmd, cwd, **env):
+    env = {**os.environ, "PYTHONPATH": str(cwd), "PATH": f"{BIN}:{os.environ['PATH']}", **env}
     return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
 
 
 def snakemake(cwd, *args):
     return run(["snakemake", "--cores", "2", *args], cwd)
+
+
+def watched_snakemake(cwd, tmp_path, targets, *args):
+    """snakemake, and the files among `targets` (real paths) that its process opened."""
+    if not targets:
+        return snakemake(cwd, *args), []
+    (tmp_path / "watch").mkdir()
+    (tmp_path / "watch" / "sitecustomize.py").write_text(WATCH)
+    log = tmp_path / "opened.txt"
+    r = run(
+        ["snakemake", "--cores", "2", *args],
+        cwd,
+        PYTHONPATH=f"{tmp_path / 'watch'}{os.pathsep}{cwd}",
+        ESNAP_OPENS_LOG=str(log),
+        ESNAP_OPENS_OF=os.pathsep.join(targets),
+    )
+    lines = log.read_text().split("\n")
+    assert "watching" in lines  # the hook was installed
+    return r, [p for p in lines if p and p != "watching"]
 
 
 def digest(root: Path) -> dict[str, str]:
@@ -68,6 +102,10 @@ def wf(tmp_path_factory):
             shutil.copytree(src, d / name, ignore=shutil.ignore_patterns("__pycache__"))
         else:
             shutil.copy2(src, d / name)
+    done = os.environ.get("ESNAP_CORPUS_RUN")  # a finished run of this code to start from (minutes saved)
+    for name in ("raw_data", "results", ".snakemake", ".budgets") if done else ():
+        if (Path(done) / name).exists():
+            shutil.copytree(Path(done) / name, d / name, symlinks=True)
     for args in (["all", "--config", "budget=smoke"], ["all", *RIG]):  # the twin records; read as a rig's
         r = snakemake(d, *args)
         assert r.returncode == 0, r.stderr[-3000:]
@@ -81,52 +119,60 @@ def raw(wf):
     """Restore the raw tree after each kind (copy2 keeps times: nothing looks changed)."""
     yield wf / "raw_data"
     shutil.rmtree(wf / "raw_data")
-    for p in wf.parent.glob("outside_*"):
+    for p in wf.glob("outside_*"):  # where the corpus puts what it links to
         shutil.rmtree(p)
     shutil.copytree(wf.parent / "pristine_raw", wf / "raw_data", symlinks=True)
 
 
-def esnap_validate(wf, capsys, monkeypatch) -> tuple[int, str, str]:
-    """`esnap validate raw_data --budget smoke`, in-process (the same entry point as the CLI)."""
+def esnap_validate(wf, capsys, monkeypatch, source="rig") -> tuple[int, str, str]:
+    """`esnap validate raw_data --source S --config budget=smoke`, in-process (the CLI's entry point)."""
     from embodied_snap.cli import main
 
     monkeypatch.chdir(wf)
-    rc = main(["validate", "raw_data", "--budget", "smoke"])
+    rc = main(["validate", "raw_data", "--source", source, "--config", "budget=smoke"])
     out = capsys.readouterr()
     return rc, out.out, out.err
 
 
 def test_corpus_size():
     assert len(CORPUS) - len(BENIGN) >= 40 and len(BENIGN) >= 5
+    assert set(TWIN) <= set(CORPUS)
 
 
 @pytest.mark.parametrize("kind", list(CORPUS))
-def test_kind(wf, raw, kind, capsys, monkeypatch):
-    breaks, want = CORPUS[kind]
+def test_kind(wf, raw, kind, capsys, monkeypatch, tmp_path):
+    breaks, rig_answer = CORPUS[kind]
     before = digest(wf / "results")
     breaks(raw)
-    rc, out, err = esnap_validate(wf, capsys, monkeypatch)
-    if want is None:
-        assert rc == 0 and not err, err
-        r = snakemake(wf, "-n", "all", *RIG)  # accepted: the DAG builds (the rebuild is the user's)
-        assert r.returncode == 0 and not error_lines(r.stdout + r.stderr), r.stderr[-3000:]
-        return
-    # esnap validate: exactly one line, naming the file, the group and the rule
-    assert rc == 1 and not out and err.count("\n") == 1, err
-    line = err.strip()
-    file, gid, rule = want
-    path = (
-        f"raw_data/{file}"
-        if file in ("index.csv", "sealed.json")
-        else f"raw_data/groups/{gid}/{file}".rstrip("/")
-    )
-    assert line.startswith(f"error: {path}: group {gid}: ") and f"(rule: {rule}" in line, line
-    # the workflow: stops while the plan is read, with the same line, and touches nothing
-    r = snakemake(wf, "all", *RIG)
-    assert r.returncode != 0
-    assert error_lines(r.stdout + r.stderr) == [line], (r.stdout + r.stderr)[-3000:]
-    assert "Traceback (most recent call last)" not in r.stderr
-    assert digest(wf / "results") == before
+    targets = outside_targets(raw)  # what a link out of raw_data points at: never to be opened
+    for source, args in MODES.items():
+        want = TWIN.get(kind, rig_answer) if source == "twin" else rig_answer
+        with opens() as seen:
+            rc, out, err = esnap_validate(wf, capsys, monkeypatch, source)
+        assert not opened_any(seen, targets), (source, opened_any(seen, targets))
+        if want is None:
+            assert rc == 0 and not err, (source, err)
+            r = snakemake(wf, "-n", "all", *args)  # accepted: the DAG builds (the rebuild is the user's)
+            assert r.returncode == 0 and not error_lines(r.stdout + r.stderr), (source, r.stderr[-3000:])
+            continue
+        # esnap validate: exactly one line, naming the file, the group and the rule
+        assert rc == 1 and not out and err.count("\n") == 1, (source, err)
+        line = err.strip()
+        file, gid, rule = want
+        path = (
+            f"raw_data/{file}"
+            if file in ("index.csv", "sealed.json")
+            else f"raw_data/groups/{gid}/{file}".rstrip("/")
+        )
+        assert line.startswith(f"error: {path}: group {gid}: ") and f"(rule: {rule}" in line, (source, line)
+        # the workflow: stops while the plan is read, with the identical line, and touches nothing
+        (tmp_path / source).mkdir()
+        r, opened = watched_snakemake(wf, tmp_path / source, targets, "all", *args)
+        assert r.returncode != 0, source
+        assert error_lines(r.stdout + r.stderr) == [line], (source, (r.stdout + r.stderr)[-3000:])
+        assert "Traceback (most recent call last)" not in r.stderr, source
+        assert not opened, (source, opened)
+        assert digest(wf / "results") == before, source
 
 
 def test_reseal_is_explicit(wf, raw, capsys, monkeypatch):
@@ -135,7 +181,7 @@ def test_reseal_is_explicit(wf, raw, capsys, monkeypatch):
     assert esnap_validate(wf, capsys, monkeypatch)[0] == 1
     from embodied_snap.cli import main
 
-    assert main(["seal", "raw_data", "--budget", "smoke", "--source", "rig"]) == 0
+    assert main(["seal", "raw_data", "--config", "budget=smoke", "--source", "rig"]) == 0
     out = capsys.readouterr().out
     assert "sealed set: 1 groups: dyn_0008; was: dyn_0007, dyn_0008; recorded in raw_data/sealed.json" in out
     assert esnap_validate(wf, capsys, monkeypatch)[0] == 0
@@ -150,7 +196,7 @@ def test_exclusion_is_the_users_decision(wf, raw, capsys, monkeypatch):
     from embodied_snap.cli import main
 
     monkeypatch.chdir(wf)
-    assert main(["validate", "raw_data", "--budget", "smoke", "--exclude", "att_0004"]) == 0
+    assert main(["validate", "raw_data", "--config", "budget=smoke", "--exclude", "att_0004"]) == 0
     assert "excluded: att_0004 (raw_data.exclude)" in capsys.readouterr().out
     cfg = [
         "--config",

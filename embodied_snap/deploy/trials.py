@@ -49,10 +49,14 @@ def lab_trials(raw) -> list[dict]:
     for meta_path in sorted(raw.glob("groups/*/meta.json")):
         gid = meta_path.parent.name
         try:
-            meta = RF.read_meta(meta_path)
+            p = RF.group_paths(raw, gid)  # first: a file linked out of the tree is refused unread
+        except RF.RecordingError as e:
+            out.append(dict(group_id=gid, cause=str(e)))
+            continue
+        try:
+            meta = RF.read_meta(p["meta"])
         except (OSError, ValueError):  # the gate names what is wrong with it
             meta = {}
-        p = RF.group_paths(raw, gid)
         out.append(dict(group_id=gid, evidence_set=meta.get("evidence_set"), category=meta.get("category"),
                         session=meta.get("session"), recorded_at=meta.get("recorded_at"),
                         **{f"n_{k}": parquet_rows(p[k]) for k in ("mocap", "servo") if p[k].exists()}))
