@@ -41,6 +41,67 @@ def test_servo_fit_recovers_rate_and_time_constant():
     assert fit["tau_s"] == pytest.approx(0.04, rel=0.1)
 
 
+def first_order_rate_limited_step(t, t0, w_from, goal, rate, tau):
+    """Closed form of dw/dt = clip((goal - w) / tau, -rate, rate) after a step of the goal at t0:
+    a ramp at the full rate until the error has fallen to rate * tau (at t1), then the error decays
+    as exp(-(t - t1) / tau). Written out here, independent of servo.simulate."""
+    e0 = goal - w_from
+    s, ramp = np.sign(e0), max(abs(e0) - rate * tau, 0.0) / rate
+    t1 = t0 + ramp
+    e1 = e0 - s * rate * ramp  # the error left when the ramp ends (+-rate*tau, or e0 if no ramp)
+    return np.where(t < t0, w_from,
+                    np.where(t < t1, w_from + s * rate * (t - t0), goal - e1 * np.exp(-(t - t1) / tau)))
+
+
+def closed_form_bursts(rate, tau, n=6, seed=1):
+    """Bursts like the calibration's: goal 0 -> A at 0.3 s, back to 0 at 1.2 s, logged at jittered
+    ~100 Hz and rounded to ticks. Amplitudes from 100 ticks (no ramp at all: tau alone) to 1500."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        t = np.cumsum(rng.uniform(0.006, 0.014, 150))
+        t = t[t < 1.599]
+        amp = np.array([100.0 + 280 * i, -(1500.0 - 200 * i), 0.5 * (100.0 + 280 * i)])
+        goal, present = np.zeros((len(t), 3)), np.zeros((len(t), 3))
+        for j, a in enumerate(amp):
+            up = first_order_rate_limited_step(t, 0.3, 0.0, a, rate, tau)
+            at_12 = float(first_order_rate_limited_step(np.array([1.2]), 0.3, 0.0, a, rate, tau)[0])
+            down = first_order_rate_limited_step(t, 1.2, at_12, 0.0, rate, tau)
+            present[:, j] = np.where(t < 1.2, up, down)
+            goal[:, j] = np.where((t >= 0.3) & (t < 1.2), a, 0.0)
+        # the log shows a goal change at its first sample after it; t_changes are the labelled times
+        out.append(dict(t=t, goal=np.round(goal), present=np.round(present), t_changes=(0.3, 1.2)))
+    return out
+
+
+def test_closed_form_step_is_what_it_says():
+    t = np.array([0.0, 0.3, 0.3 + (1000 - 2000 * 0.05) / 2000, 1.0])
+    w = first_order_rate_limited_step(t, 0.3, 0.0, 1000.0, 2000.0, 0.05)
+    assert w[0] == 0.0 and w[1] == 0.0 and w[2] == pytest.approx(900.0)  # ramp ends 100 ticks short
+    assert w[3] == pytest.approx(1000.0 - 100.0 * np.exp(-(1.0 - 0.75) / 0.05))
+    w = first_order_rate_limited_step(np.array([0.35]), 0.3, 0.0, 50.0, 2000.0, 0.05)  # 50 < rate*tau
+    assert w[0] == pytest.approx(50.0 * (1 - np.exp(-1.0)))
+
+
+@pytest.mark.parametrize("rate, tau", [(2800.0, 0.04), (1800.0, 0.08)])
+def test_servo_fit_recovers_a_closed_form_servo(rate, tau):
+    """The fit against bursts it did not make: the exact continuous response. Its Euler step
+    (servo.DT = 1 ms against tau >= 40 ms) costs at most a few % of tau."""
+    fit = servo.fit(closed_form_bursts(rate, tau))
+    assert fit["rate_tick_s"] == pytest.approx(rate, rel=0.02)
+    assert fit["tau_s"] == pytest.approx(tau, rel=0.05)
+    assert fit["rmse_ticks"] < 3.0 and fit["n_series"] == 18
+
+
+def test_servo_simulate_matches_the_closed_form():
+    grid = np.arange(0.0, 1.0, servo.DT)
+    G = np.where(grid >= 0.2, 1200.0, 0.0)[None]
+    w = servo.simulate(grid, G, np.zeros(1), 2500.0, 0.05)[0]
+    # the model sees the goal one step late (explicit Euler on goal[k-1])
+    ref = first_order_rate_limited_step(grid, 0.2 + servo.DT, 0.0, 1200.0, 2500.0, 0.05)
+    assert np.max(np.abs(w - ref)) < 0.02 * 1200
+
+
 def test_eq2_ceilings():
     assert servo.ceilings(3000.0, [3000.0, 1500.0, 1000.0]) == pytest.approx([1.0, 2.0, 3.0])
 
@@ -194,6 +255,40 @@ def test_delay_sweep_summary():
     assert out["attach_le_030"]["attached"] == 0 and out["attach_le_030"]["n"] == 6
     assert out["attach_ge_045"]["n"] == 18 and out["attach_ge_045"]["attached"] == 15
     assert out["closest_attached_median_m"] == 0.01  # Fig. 3c: the attached trials only
+
+
+def _sweep(attached_taus, speed=None):
+    """Three trials per delay 0.15..0.70 s; the speed peaks at 0.55 s unless `speed` says otherwise."""
+    taus = [0.15, 0.30, 0.45, 0.50, 0.55, 0.60, 0.65, 0.70]
+    speed = speed or {0.15: 1.1, 0.30: 1.2, 0.45: 1.45, 0.50: 1.5, 0.55: 1.6, 0.60: 1.5, 0.65: 1.45, 0.70: 1.4}
+    return [dict(tau=t, v_peak=speed[t], closest_m=0.01, attached=t in attached_taus) for t in taus for _ in range(3)]
+
+
+@pytest.mark.parametrize("attached, supported", [
+    ((0.45, 0.50, 0.55, 0.60, 0.65, 0.70), [0.45, 0.70]),  # the run reaches the top tested delay
+    ((0.15, 0.30, 0.45, 0.50, 0.55), [0.15, 0.55]),  # ... and the bottom one
+    ((0.15, 0.30, 0.45, 0.50, 0.55, 0.60, 0.65, 0.70), [0.15, 0.70]),  # every delay attached
+    ((0.45, 0.50, 0.55, 0.65, 0.70), [0.45, 0.55]),  # 0.60 failed: contiguous, no jump over it
+    ((0.30, 0.50, 0.55, 0.60), [0.50, 0.60]),
+    ((0.55,), [0.55, 0.55]),
+])
+def test_delay_supported_interval_ends(attached, supported):
+    assert delay.summarize(_sweep(attached))["supported_tau_s"] == supported
+
+
+def test_delay_supported_interval_is_nan_when_the_optimum_did_not_always_attach():
+    rows = _sweep((0.45, 0.50, 0.60))
+    rows[12]["attached"] = True  # one of three trials at the optimum, 0.55 s
+    assert rows[12]["tau"] == 0.55
+    out = delay.summarize(rows)
+    assert np.isnan(out["supported_tau_s"]).all() and out["per_tau"][4]["attached"] == 1
+
+
+def test_delay_optimum_at_the_top_end():
+    speed = {0.15: 1.1, 0.30: 1.2, 0.45: 1.3, 0.50: 1.4, 0.55: 1.5, 0.60: 1.55, 0.65: 1.58, 0.70: 1.6}
+    out = delay.summarize(_sweep((0.60, 0.65, 0.70), speed))
+    assert out["best_tau_s"] == 0.70 and out["supported_tau_s"] == [0.60, 0.70]
+    assert out["speed_optimal_taus"] == [0.65, 0.70]  # within 3 % of 1.6 is >= 1.552: not 1.55
 
 
 # --- held-base detectors --------------------------------------------------------------------------

@@ -104,6 +104,37 @@ def test_hold_bank_and_loso(synthetic_frames):
     assert r["n_holds"] == 6 and r["n_sessions"] == 3
 
 
+def test_release_row_is_the_last_frame_strictly_before_the_label():
+    t = np.arange(100) / 64.0  # binary-exact frame times: a label can sit exactly on a frame
+    assert hold.release_row(t, 40 / 64) == 39  # on frame 40: frame 40 is not before it
+    assert hold.release_row(t, 40.5 / 64) == 40  # between frames 40 and 41
+    assert hold.release_row(t, 99.5 / 64) == 99  # after the last frame
+    assert hold.release_row(t, 0.0) == -1  # nothing before it
+
+
+def test_hold_bank_ends_on_the_frame_before_the_release(synthetic_frames):
+    """The expected rows are read off the frame times by hand: 50 Hz frames at k * 0.02 s."""
+    f = synthetic_frames(n_groups=3)
+    t = f[f.group_id == "g0"]["t"].to_numpy()
+    labels = {"g0": float(t[75]), "g1": float(t[60]) + 0.01, "g2": float(t[90]) - 0.001}
+    row = {"g0": 74, "g1": 60, "g2": 89}  # the label on frame 75; halfway 60..61; just before 90
+    metas = {g: dict(session="s0", labels=dict(t_s2=labels[g]),
+                     program=dict(rho1=2500.0, rho2=2500.0, rho3=2500.0, s3=0.0, bearing=210.0)) for g in labels}
+    B = hold.bank(f, metas, 210.0, HISTORY)
+    assert B["group_ids"].tolist() == ["g0", "g1", "g2"]
+    for j, g in enumerate(B["group_ids"]):
+        X = f[f.group_id == g][STATE_COLUMNS].to_numpy()
+        np.testing.assert_allclose(B["x"][j, -1, :12], X[row[g], :12], atol=1e-6)  # x_t: the release row
+        np.testing.assert_allclose(B["x"][j, 0, :12], X[row[g] - HISTORY, :12], atol=1e-6)  # x_{t-20}
+    # a label 20 frames in leaves no full history: that group is left out
+    metas["g1"]["labels"]["t_s2"] = float(t[20])  # row 19 < 20
+    assert hold.bank(f, metas, 210.0, HISTORY)["group_ids"].tolist() == ["g0", "g2"]
+    metas["g1"]["labels"]["t_s2"] = float(t[21])  # row 20: exactly the history, from frame 0
+    B = hold.bank(f, metas, 210.0, HISTORY)
+    assert B["group_ids"].tolist() == ["g0", "g1", "g2"]
+    np.testing.assert_allclose(B["x"][1, 0, :12], f[f.group_id == "g1"][STATE_COLUMNS].to_numpy()[0, :12], atol=1e-6)
+
+
 def test_loso_known_answer():
     """Two sessions whose holds differ only by a 10 mm tip shift and a 90 deg axis turn: each is
     predicted from the other, so every error is exactly that."""

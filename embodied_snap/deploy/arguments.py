@@ -15,18 +15,14 @@ import os
 from pathlib import Path
 
 from . import commands as C
-from .client import DeployError
 
-# XM430 control table, Baud Rate (address 8): the rates the servo can be set to.
-XM430_BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
-# dynamixel-sdk 4.1.0's PortHandler.setBaudRate refuses 4.5 Mbps (not among its termios rates),
-# and only after the port is open: refused here instead.
-SDK_CANNOT_SET = (4_500_000,)
+# The checks client.run applies again (its one door to the port) live there.
+from .client import ArgumentError, DeployError
+from .client import checked_baud as baud
+from .client import checked_placement as placement
+from .client import checked_servo_ids as servo_ids
+
 MOCAP_KEY = "target_m"
-
-
-class ArgumentError(DeployError):
-    """A command-line argument the trial cannot use: one line, exit status 2."""
 
 
 def _finite_xyz(values, what: str) -> list[float]:
@@ -67,33 +63,6 @@ def read_mocap(path) -> list[float]:
         keys = sorted(data) if isinstance(data, dict) else type(data).__name__
         raise ArgumentError(f'{what}: expected exactly {{"{MOCAP_KEY}": [x, y, z]}}, got {keys}')
     return _finite_xyz(data[MOCAP_KEY], f"{what}: {MOCAP_KEY}")
-
-
-def placement(man: dict, k: int | None) -> int | None:
-    """--placement k: one of the manifest's placements, 1-based (0 or -1 would index from the end)."""
-    n = len(man["placements"])
-    if k is not None and not 1 <= k <= n:
-        raise ArgumentError(f"--placement {k}: the manifest has placements 1..{n}")
-    return k
-
-
-def baud(man: dict, b: int | None) -> int:
-    """--baud (default: the manifest's): one the XM430 supports and dynamixel-sdk can set."""
-    what = f"--baud {b}" if b is not None else f"the manifest's servos.baud {man['servos']['baud']}"
-    b = man["servos"]["baud"] if b is None else b
-    if b not in XM430_BAUD_RATES:
-        raise ArgumentError(f"{what}: not a baud rate of the XM430 ({', '.join(map(str, XM430_BAUD_RATES))})")
-    if b in SDK_CANNOT_SET:
-        raise ArgumentError(f"{what}: the XM430 supports it but dynamixel-sdk cannot set it")
-    return b
-
-
-def servo_ids(man: dict) -> list[int]:
-    """The manifest's servo ids: 1..9, each once (servo 3(s-1)+k pulls tendon k of section s)."""
-    ids = man["servos"]["ids"]
-    if sorted(ids) != list(range(1, 10)) or any(isinstance(i, bool) for i in ids):
-        raise ArgumentError(f"the manifest's servos.ids {ids}: expected 1..9, each once")
-    return ids
 
 
 def group_id(gid: str) -> str:

@@ -47,6 +47,37 @@ class DeployError(RuntimeError):
     """The trial stopped or was refused: one line naming the cause."""
 
 
+class ArgumentError(DeployError):
+    """A command-line argument the trial cannot use: one line, exit status 2."""
+
+
+def checked_placement(man: dict, k: int | None) -> int | None:
+    """--placement k: one of the manifest's placements, 1-based (0 or -1 would index from the end)."""
+    n = len(man["placements"])
+    if k is not None and not 1 <= k <= n:
+        raise ArgumentError(f"--placement {k}: the manifest has placements 1..{n}")
+    return k
+
+
+def checked_baud(man: dict, b: int | None) -> int:
+    """--baud (default: the manifest's): one the XM430 supports and dynamixel-sdk can set."""
+    what = f"--baud {b}" if b is not None else f"the manifest's servos.baud {man['servos']['baud']}"
+    b = man["servos"]["baud"] if b is None else b
+    if b not in CT.BAUD_RATES:
+        raise ArgumentError(f"{what}: not a baud rate of the XM430 ({', '.join(map(str, CT.BAUD_RATES))})")
+    if b in CT.SDK_CANNOT_SET:
+        raise ArgumentError(f"{what}: the XM430 supports it but dynamixel-sdk cannot set it")
+    return b
+
+
+def checked_servo_ids(man: dict) -> list[int]:
+    """The manifest's servo ids: 1..9, each once (servo 3(s-1)+k pulls tendon k of section s)."""
+    ids = man["servos"]["ids"]
+    if sorted(ids) != list(range(1, 10)) or any(isinstance(i, bool) for i in ids):
+        raise ArgumentError(f"the manifest's servos.ids {ids}: expected 1..9, each once")
+    return ids
+
+
 PORT_ERRORS = (OSError, _TermiosError)
 DRAIN_SHARE = 0.25  # after a lost reply, wait this share of the reply timeout for it to land before
 # dropping it (5 ms at the lab's 20 ms): a lost reply and its retry then stay inside the gate's 50 ms
@@ -389,8 +420,6 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     """One trial. Returns {commands, phases, goals, log, cause, torque_off}; raises DeployError
     (one line) when it refuses or aborts, after torque went off. `placement`: which of the manifest's
     placements the block stands at (recorded in the program; Table II counts placements)."""
-    from . import arguments as A  # it imports this module (DeployError)
-
     try:
         man = load(manifest)
         trial = C.plan(man, target)
@@ -398,9 +427,9 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
         raise DeployError(f"refused: {e}") from None
     # The one door to the port (esnap deploy and the simulated rig's trials): what the command
     # line checked is checked again here, before the port opens.
-    A.servo_ids(man)
-    A.placement(man, placement)
-    baud = A.baud(man, baud)
+    checked_servo_ids(man)
+    checked_placement(man, placement)
+    baud = checked_baud(man, baud)
     cmd, goals = trial["commands"], trial["goals"]
     say("commands: " + ", ".join(f"{k} {v:.3f}" for k, v in cmd.items()))
     say(f"schedule: {len(goals)} goals at {man['servos']['hz']} Hz over {trial['t'][-1]:.2f} s; phases "

@@ -20,6 +20,11 @@ EXTENDED_POSITION_MODE = 4
 WATCHDOG_UNIT_MS = 20
 CURRENT_UNIT_MA = 2.69
 ALERT_BIT = 0x80  # status packet error byte: a hardware error is latched (read address 70)
+# Baud Rate (address 8): the rates the servo can be set to.
+BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+# dynamixel-sdk 4.1.0's PortHandler.setBaudRate refuses 4.5 Mbps (not among its termios rates),
+# and only after the port is open: refused before it instead.
+SDK_CANNOT_SET = (4_500_000,)
 
 
 def signed(value: int, nbytes: int) -> int:
