@@ -46,8 +46,10 @@ def result_files(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_
     return files
 
 
-def build(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD):
-    """The crate (rocrate.ROCrate) of the recorded run in `root`, to be written to `out`."""
+def build(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD, may_read=None):
+    """The crate (rocrate.ROCrate) of the recorded run in `root`, to be written to `out`.
+    `may_read(path)`: whether a result file no record hashed may be read to hash it (the crate
+    job: only what it declares); one it may not is listed without a sha256."""
     from rocrate.model.contextentity import ContextEntity
     from rocrate.rocrate import ROCrate
 
@@ -122,13 +124,16 @@ def build(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD)
         "@type": "OrganizeAction", "name": "Snakemake run", "object": controls, "result": run,
         **({"instrument": engine} if engine else {})}))
     for p in result_files(root, out, own_record):  # anything else under results/ (configs, records)
-        file(p)
+        # A file no record names yet, and not declared, is a job's still running beside the crate
+        # (the robustness variants': `snakemake all` rewrites the crate after them): never read.
+        readable = may_read is None or p.startswith(RECORDS_DIR + "/") or may_read(p)
+        file(p) if readable else file(p, "")
     return crate
 
 
-def write(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD) -> Path:
+def write(root=".", out: str = DEFAULT_OUT, own_record: str | None = OWN_RECORD, may_read=None) -> Path:
     out_dir = Path(root) / out
-    crate = build(root, out, own_record)
+    crate = build(root, out, own_record, may_read)
     out_dir.mkdir(parents=True, exist_ok=True)
     crate.metadata.write(out_dir)
     return out_dir / "ro-crate-metadata.json"
