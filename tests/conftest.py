@@ -1,6 +1,7 @@
 """Fixtures shared by several test modules. Helper modules (fakerig, lineage_tree) write files;
 what is built in memory lives here."""
 
+import os
 import shutil
 
 import numpy as np
@@ -8,6 +9,10 @@ import pandas as pd
 import pytest
 
 from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
+
+# The suite's deployment trials run at normal priority, as before the real-time loop: its priority
+# step is unit-tested with fakes (test_loop.py) and measured under load by bench/loop_load.py.
+os.environ.setdefault("ESNAP_REALTIME", "0")
 
 
 def _synthetic_frames(n_groups=6, n=140, seed=0):

@@ -322,13 +322,7 @@ def _subprocess_trial(man_path, tmp_path, sig, done=lambda bus: True):
         proc = subprocess.Popen([sys.executable, "-m", "embodied_snap.cli", "deploy", "--manifest", str(man_path),
                                  "--port", bus.port, "--placement", "2", "--yes", "--out", str(tmp_path)],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
-        # mid-trial: the client has planned (its imports, which a loaded machine stretches past any
-        # fixed time, are behind it) and the bus's clock has run half a second since
-        for line in proc.stdout:
-            if line.startswith("schedule:"):
-                break
-        t_planned = bus.now()
-        while bus.now() < t_planned + 0.5 and proc.poll() is None:
+        while bus.now() < 0.4 and proc.poll() is None:
             time.sleep(0.01)
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=20)
