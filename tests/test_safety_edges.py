@@ -6,51 +6,24 @@ manifest's own numbers, written out; the end-to-end versions are tests/test_depl
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-import yaml
+import test_deploy
 
 from embodied_snap import bearing as BR
-from embodied_snap import protocol
 from embodied_snap.deploy import client
 from embodied_snap.deploy import commands as C
 from embodied_snap.deploy import controltable as CT
-from embodied_snap.deploy import manifest as MF
-from embodied_snap.policy import geometry, networks
+from embodied_snap.policy import geometry
 
-ROOT = Path(__file__).resolve().parent.parent
-FAST = dict(hang_s=0.1, settle_s=0.1, s2_delay_s=0.1, after_s1_s=0.2, plan_margin=0.9, carry_s=0.2,
-            carry_hold_s=0.1, carry_ticks=300)
+man_path = test_deploy.man_path  # the deployment tests' manifest fixture, reused
 
 
 @pytest.fixture(scope="module")
-def man(tmp_path_factory) -> dict:
-    """A manifest from a synthetic policy and workspace (the recipe of tests/test_deploy.py)."""
-    d = tmp_path_factory.mktemp("manifest")
-    rng = np.random.default_rng(3)
-    cfg = yaml.safe_load(open(ROOT / "config.yaml"))
-    n = np.array([0.0, -1.0, 0.0])
-    b = np.deg2rad(rng.uniform(195, 235, 60))
-    r, y = rng.uniform(0.45, 0.75, 60), rng.uniform(-0.7, -0.2, 60)
-    P = np.stack([r * np.cos(b), y, r * np.sin(b)], 1)
-    D = np.tile([0.6, -0.6, 0.5], (60, 1))
-    ws = dict(hanging_axis=n.tolist(), phi0_deg=210.0, delta_str_deg=5.0, n_strikes=60,
-              strike_points_m=P.round(5).tolist(), strike_dirs=(D / np.linalg.norm(D, axis=1)[:, None]).tolist(),
-              bin_lo_deg=160.0, bin_width_deg=10.0, rho_max=[[3600.0, 3250.0, 3550.0]] * 11)
-    g = geometry.features(np.asarray(ws["strike_points_m"]), n)
-    run = dict(arch="shared", seed=0, n_params=networks.n_params("shared"), selection_reward=0.4,
-               selected_generation=3, theta=rng.normal(0, 0.3, networks.n_params("shared")).tolist(),
-               norm=dict(mu=g.mean(0).tolist(), sd=g.std(0).tolist()))
-    (d / "run.json").write_text(json.dumps(run))
-    proto = protocol.params(cfg, "primitive", "rig")
-    proto["rig"]["rated_speed_tick_s"] = 30000.0
-    dcfg = dict(cfg["deployment"], schedule=FAST, policy=cfg["policy"], n_placements=3)
-    m = MF.build({"policy_run": d / "run.json"}, run, ws, dict(lever_ticks_per_rad=[2300, 1450, 1440],
-                 ceiling_rad_s=[1.3, 2.1, 2.1]), dcfg, proto, {}, {})
-    return json.loads(json.dumps(m))
+def man(man_path) -> dict:
+    return test_deploy._man(man_path)
 
 
 # --- preflight: one servo, one field wrong at a time -------------------------------------------------
