@@ -42,17 +42,16 @@ def _held(root: Path, config: dict) -> list[str]:
     return [t for t in trees(config) if (root / t).exists() and any((root / t).iterdir())]
 
 
-def _index_budget(root: Path, config: dict, any_source: bool = False) -> str | None:
-    """The budget whose simulated-rig plan is exactly the groups of raw_data/index.csv."""
+def _index_budget(raw: Path, config: dict) -> str | None:
+    """The budget whose simulated-rig plan is exactly the groups of raw/index.csv."""
     import pandas as pd
 
     from .plan import twin_plan
     from .rawformat import RecordingError, raw_file
 
-    raw = root / config["raw_data"]["dir"]
     try:
         index = raw_file(raw, "index.csv")  # a link out of the raw tree is the gate's to refuse, unread
-        if not (any_source or config["raw_data"]["source"] == "twin") or not index.is_file():
+        if not index.is_file():
             return None
         ids = set(pd.read_csv(index, usecols=["group_id"]).group_id)
     except (RecordingError, ValueError, UnicodeDecodeError, OSError):
@@ -71,7 +70,9 @@ def active(config: dict, root=".") -> str | None:
     rec = root / ACTIVE
     if rec.exists():
         return json.loads(rec.read_text())["budget"]
-    return _index_budget(root, config)
+    if config["raw_data"]["source"] != "twin":  # a lab's recordings are no budget's
+        return None
+    return _index_budget(root / config["raw_data"]["dir"], config)
 
 
 def shown(config: dict, root=".") -> str:
@@ -178,7 +179,7 @@ def check_tree(config: dict, raw, argv: list[str] | None = None) -> None:
     """Before `esnap validate` or `esnap seal` reads raw for config's budget: a tree whose index.csv
     lists exactly another budget's simulated-rig groups is that budget's (a lab's tree is no
     budget's). Else one line with the command that fits."""
-    held = _index_budget(Path(raw), {**config, "raw_data": {**config["raw_data"], "dir": "."}}, any_source=True)
+    held = _index_budget(Path(raw), config)
     if held not in (None, config["budget"]):
         raise BudgetError(f"{raw} holds the {held} budget's recordings and this asks for {config['budget']}: "
                           f"`{with_budget(argv or ['esnap'], held)}`")
