@@ -46,6 +46,8 @@ include: "rules/report.smk"
 
 
 # Every product of the run; the RO-Crate comes after all of them (a new stage adds its own here).
+# The stages' rule files are read in any order: each reads only rules/common.smk and its own names
+# (tests/test_rule_files.py).
 PRODUCTS = [
     "results/figures",
     "results/raw/manifest.json",
@@ -61,7 +63,8 @@ PRODUCTS = [
         if DEPLOYED
     ),
     "results/deployment/manifest.json",
-    *TWIN_REPORTS,
+    # the simulated rig's own check against its truth (rules/acquire.smk)
+    *(["results/twin/validation.json"] if TWIN else []),
 ]
 
 
@@ -81,3 +84,20 @@ rule robustness:
     cores at the paper budget, so not part of `all`."""
     input:
         ROBUSTNESS,
+
+
+rule crate:
+    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product, the
+    robustness variants' too once they exist (a later `snakemake all` then rewrites the crate).
+    """
+    input:
+        lambda wc: PRODUCTS + [f for f in ROBUSTNESS if Path(f).exists()],
+        code=imports("crate"),
+    output:
+        "results/crate/ro-crate-metadata.json",
+    log:
+        "logs/crate.log",
+    conda:
+        "envs/esnap.yaml"
+    script:
+        "workflow_scripts/crate.py"

@@ -16,12 +16,18 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+import yaml  # noqa: E402
+
+from embodied_snap.protocol import load  # noqa: E402
 from embodied_snap.resample import resample_group  # noqa: E402
+from embodied_snap.validate import Limits, validate_group  # noqa: E402
 
 from fakerig import write_fake_raw  # noqa: E402
 
-HZ, MAX_GAP_S = 50.0, 0.1  # config resample: the grid the benchmark times
-from embodied_snap.validate import validate_group  # noqa: E402
+CONFIG = yaml.safe_load((Path(__file__).resolve().parents[1] / "config.yaml").read_text())
+SAMPLING = load(CONFIG).sampling  # config resample: the grid the benchmark times
+HZ, MAX_GAP_S = SAMPLING.hz, SAMPLING.max_gap_s
+LIMITS = Limits.from_config(CONFIG)
 
 
 def best_time(fn, ids, repeat):
@@ -48,7 +54,7 @@ def main(argv=None):
         rows = sum(len(resample_group(d, g, HZ, MAX_GAP_S)) for g in ids)
         runs = [("resample", lambda g: resample_group(d, g, HZ, MAX_GAP_S))]
         if a.validate:
-            runs.append(("validate", lambda g: validate_group(d, g)))
+            runs.append(("validate", lambda g: validate_group(d, g, limits=LIMITS)))
         print(f"{a.groups} fakerig groups of {a.duration:g} s ({rows // a.groups} rows at 50 Hz each)")
         for name, fn in runs:
             s = best_time(fn, ids, a.repeat)

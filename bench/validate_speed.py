@@ -33,12 +33,12 @@ def main(argv=None):
         limits = Limits.from_config(yaml.safe_load(f))
     rows = read_index(a.raw_dir, limits.group_id_pattern).to_dict("records")
     rows = rows[:: max(1, len(rows) // a.groups)][: a.groups]
-    validate_group(a.raw_dir, rows[0]["group_id"], rows[0], limits)  # warm-up: imports, caches
+    validate_group(a.raw_dir, rows[0]["group_id"], rows[0], limits=limits)  # warm-up: imports, caches
     best = float("inf")
     for _ in range(a.repeat):
         t = time.perf_counter()
         for r in rows:
-            validate_group(a.raw_dir, r["group_id"], r, limits)
+            validate_group(a.raw_dir, r["group_id"], r, limits=limits)
         best = min(best, time.perf_counter() - t)
     n = len(rows)
     print(f"{n} groups of {a.raw_dir}")

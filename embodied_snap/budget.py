@@ -19,6 +19,8 @@ import os
 import shlex
 from pathlib import Path
 
+from .files import write_text
+
 HOME = ".budgets"
 ACTIVE = f"{HOME}/active.json"
 # What a run writes besides the raw tree: each travels with its budget. Snakemake's metadata
@@ -85,10 +87,7 @@ def shown(config: dict, root=".") -> str:
 
 
 def _record(root: Path, name: str) -> None:
-    (root / HOME).mkdir(exist_ok=True)
-    tmp = root / f"{ACTIVE}.tmp"
-    tmp.write_text(json.dumps({"budget": name}) + "\n")
-    os.replace(tmp, root / ACTIVE)
+    write_text(root / ACTIVE, json.dumps({"budget": name}) + "\n")
 
 
 def with_budget(argv: list[str], name: str) -> str:

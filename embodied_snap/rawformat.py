@@ -10,10 +10,12 @@ from __future__ import annotations
 import functools
 import json
 import os
-import tempfile
 from pathlib import Path
+from typing import NamedTuple
 
 import pandas as pd
+
+from .files import write_atomic
 
 FORMAT_VERSION = 1
 MOCAP_HZ = 240.0
@@ -25,35 +27,46 @@ BODIES = ("base", "s1", "s2", "tip", "target")
 POSE_FIELDS = ("x", "y", "z", "qw", "qx", "qy", "qz")
 SERVO_IDS = tuple(range(1, N_SERVOS + 1))
 
-EVIDENCE_SETS = (
-    "servo_calibration",
-    "attachment",
-    "release_mode",
-    "delay_sweep",
-    "dynamics",
-    "held_base",
-    "deployment",
-)
-# Categories of each evidence set (paper Table I and section IV-A).
-CATEGORIES = {
-    "servo_calibration": ("burst",),
-    "attachment": ("target",),
-    "release_mode": ("direct", "ramped", "instantaneous"),
-    "delay_sweep": ("sweep",),
-    "dynamics": ("free_space", "target", "sealed", "pilot", "characterisation"),
-    "held_base": ("held",),
-    "deployment": ("placement",),
+
+class EvidenceSet(NamedTuple):
+    prefix: str  # of its group ids, `<prefix>_<nnnn>`
+    categories: tuple  # paper Table I and section IV-A, in group-numbering order
+    budgeted: bool = True  # recorded as a budget's `groups` ask (deployment: by the deployment stage)
+
+
+# The evidence sets: the one table that names them and their categories (docs/data.md), in plan
+# order. A budget's `groups` (config.yaml) asks for counts per set and category of this table;
+# the gate's labels and programs per set (config.yaml `gate`) and the separation policy
+# (lineage/policy.py) are keyed by these names.
+EVIDENCE = {
+    "servo_calibration": EvidenceSet("cal", ("burst",)),
+    "attachment": EvidenceSet("att", ("target",)),
+    "release_mode": EvidenceSet("rel", ("direct", "ramped", "instantaneous")),
+    "delay_sweep": EvidenceSet("dly", ("sweep",)),
+    "dynamics": EvidenceSet("dyn", ("free_space", "target", "sealed", "pilot", "characterisation")),
+    "held_base": EvidenceSet("hb", ("held",)),
+    "deployment": EvidenceSet("dep", ("placement",), budgeted=False),
 }
-# Short group-id prefixes, one per evidence set.
-PREFIX = {
-    "servo_calibration": "cal",
-    "attachment": "att",
-    "release_mode": "rel",
-    "delay_sweep": "dly",
-    "dynamics": "dyn",
-    "held_base": "hb",
-    "deployment": "dep",
-}
+EVIDENCE_SETS = tuple(EVIDENCE)
+CATEGORIES = {es: e.categories for es, e in EVIDENCE.items()}
+PREFIX = {es: e.prefix for es, e in EVIDENCE.items()}
+
+
+def groups_error(config: dict) -> str | None:
+    """One line naming a budget's `groups` key that is not a budgeted evidence set of EVIDENCE, or
+    not one of its categories (as the schema's errors read); None if all are."""
+    for b, spec in config["budgets"].items():
+        for es, counts in spec["groups"].items():
+            where = f"config: budgets.{b}.groups"
+            if es not in EVIDENCE or not EVIDENCE[es].budgeted:
+                known = ", ".join(k for k, e in EVIDENCE.items() if e.budgeted)
+                return (f"{where}: {es!r} is not an evidence set a budget records (known: {known}; "
+                        "embodied_snap/rawformat.py)")
+            for cat in counts:
+                if cat not in EVIDENCE[es].categories:
+                    return (f"{where}.{es}: {cat!r} is not a category of {es} (known: "
+                            f"{', '.join(EVIDENCE[es].categories)}; embodied_snap/rawformat.py)")
+    return None
 
 INDEX_COLUMNS = (
     "group_id",
@@ -163,23 +176,10 @@ def group_paths(raw_dir: str | Path, group_id: str) -> dict[str, Path]:
     return out
 
 
-def _atomic(path: Path, write) -> None:
-    """Write through a temporary file and rename, so a crash never leaves half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def write_parquet(df: pd.DataFrame, path: str | Path) -> None:
-    # Fixed writer settings so that the same frame gives the same bytes.
-    _atomic(
-        Path(path),
+    # Fixed writer settings so that the same frame gives the same bytes; atomic (a crash never leaves half a file).
+    write_atomic(
+        path,
         lambda tmp: df.to_parquet(tmp, index=False, engine="pyarrow", compression="zstd"),
     )
 
@@ -190,7 +190,7 @@ def write_json(obj, path: str | Path) -> None:
             json.dump(obj, f, indent=1, sort_keys=True)
             f.write("\n")
 
-    _atomic(Path(path), w)
+    write_atomic(path, w)
 
 
 def write_group(raw_dir: str | Path, meta: dict, mocap: pd.DataFrame, servo: pd.DataFrame) -> None:
@@ -208,4 +208,4 @@ def read_meta(path: str | Path) -> dict:
 
 def write_index(rows: list[dict], path: str | Path) -> None:
     df = pd.DataFrame(rows, columns=list(INDEX_COLUMNS)).sort_values("group_id")
-    _atomic(Path(path), lambda tmp: df.to_csv(tmp, index=False))
+    write_atomic(path, lambda tmp: df.to_csv(tmp, index=False))

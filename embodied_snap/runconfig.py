@@ -2,7 +2,8 @@
 
 The workflow's config.yaml, extended by `--configfile FILE` and `--config KEY=VALUE ...`, parsed
 and merged by Snakemake's own helpers, then validated against schemas/config.schema.yaml with Snakemake's
-`validate` (defaults filled in), as the Snakefile does: a command sees the config a run with the
+`validate`, as the Snakefile does (the schema has no defaults: it requires every key config.yaml
+defines, so a config that lacks one is refused, never filled in): a command sees the config a run with the
 same arguments would see. Any error is one line (ConfigError), never the whole schema.
 Snakemake and yaml are imported inside the functions, so that the CLI's parser can use this module
 on the lab PC, where `esnap deploy` has numpy and dynamixel-sdk alone.
@@ -11,6 +12,8 @@ on the lab PC, where `esnap deploy` has numpy and dynamixel-sdk alone.
 from __future__ import annotations
 
 from pathlib import Path
+
+from .policy.architectures import seeds_error
 
 SCHEMA = Path(__file__).resolve().parent.parent / "schemas" / "config.schema.yaml"
 DEFAULT = "config.yaml"
@@ -53,7 +56,7 @@ def schema_error(e: Exception) -> str:
 
 
 def validate(cfg: dict) -> dict:
-    """`cfg` checked against the schema as the Snakefile checks it (defaults filled in)."""
+    """`cfg` checked against the schema as the Snakefile checks it (the schema has no defaults to fill in)."""
     from snakemake.exceptions import WorkflowError
     from snakemake.utils import validate as smk_validate
 
@@ -61,7 +64,19 @@ def validate(cfg: dict) -> dict:
         smk_validate(cfg, str(SCHEMA))
     except WorkflowError as e:
         raise ConfigError(schema_error(e)) from None
+    err = names_error(cfg)
+    if err:
+        raise ConfigError(err)
     return cfg
+
+
+def names_error(cfg: dict) -> str | None:
+    """One line naming a key the schema leaves to the table that holds its names: a budget's
+    evidence set or category (rawformat.EVIDENCE) or architecture (policy/architectures.py), unknown
+    or (architectures) missing; None if all are known. The Snakefile checks it after the schema."""
+    from .rawformat import groups_error  # pandas: not on the lab PC, where no config is checked
+
+    return groups_error(cfg) or seeds_error(cfg)
 
 
 def _read(path: Path) -> dict:

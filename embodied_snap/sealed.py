@@ -15,16 +15,11 @@ from pathlib import Path
 
 import pandas as pd
 
+from .files import sha256
 from .rawformat import GROUP_FILES, RecordingError, group_paths, raw_file, write_json
 
 RECORD = "sealed.json"
 RULE = "sealed set is fixed; re-seal with `esnap seal` if intended"
-
-
-def _sha256(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def current(raw_dir, plan: pd.DataFrame) -> dict:
@@ -36,7 +31,7 @@ def current(raw_dir, plan: pd.DataFrame) -> dict:
             evidence_set=r.evidence_set,
             category=r.category,
             role=r.role,
-            sha256={f: _sha256(p) for f, p in paths.items() if p.exists()},
+            sha256={f: sha256(p) for f, p in paths.items() if p.exists()},
         )
     return out
 

@@ -13,12 +13,13 @@ again whether a group is usable.
 from __future__ import annotations
 
 import csv
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .protocol import params
 from .rawformat import (
     FORMAT_VERSION,
     GROUP_FILES,
@@ -53,63 +54,39 @@ __all__ = [
 
 # Manifest names and group_paths' keys, in the manifest's order.
 _FILE_KEYS = [(name, name.split(".")[0]) for name in GROUP_FILES]
-_PROGRAM = ["kind", "bearing", "tau", "rho1", "rho2", "rho3"]
 
 
 @dataclass(frozen=True)
 class Limits:
-    """The gate's limits; the defaults are config.yaml's (tests/test_gate.py checks it)."""
+    """The gate's limits. They have no defaults: config.yaml holds them (its `gate:` section, the
+    sampling section of the protocol and raw_data.group_id_pattern); `from_config` builds them."""
 
-    max_mocap_gap_s: float = 0.1  # resample.max_gap_s: what passes is what resampling bridges
-    hz: float = 50.0  # resample.hz: dropouts count on the span of the grid resampling fills
-    max_servo_gap_s: float = 0.05
-    max_speed_mps: dict = field(
-        default_factory=lambda: {"base": 3.0, "s1": 6.0, "s2": 8.0, "tip": 10.0, "target": 5.0}
-    )
-    min_target_valid_fraction: float = 0.5
-    target_groups: tuple = ("attachment", "delay_sweep", "dynamics/target", "dynamics/sealed")
-    labels: dict = field(
-        default_factory=lambda: {
-            "servo_calibration": ["snap_speed_event", "t_up", "t_down"],
-            "attachment": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "release_mode": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "release_mode/direct": ["snap_speed_event", "t_preload", "t_release"],
-            "delay_sweep": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "dynamics": ["snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "dynamics/target": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "dynamics/sealed": ["attached", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "held_base": ["base_event_t", "snap_speed_event", "t_preload", "t_slack", "t_s2", "t_s1"],
-            "deployment": ["attached", "retrieved"],
-        }
-    )
-    program: dict = field(
-        default_factory=lambda: {
-            "servo_calibration": ["kind", "bearing", "section", "amplitude"],
-            "attachment": _PROGRAM,
-            "release_mode": _PROGRAM,
-            "delay_sweep": _PROGRAM,
-            "dynamics": _PROGRAM,
-            "held_base": _PROGRAM,
-            "deployment": [],
-        }
-    )
-    group_id_pattern: str = GROUP_ID_PATTERN
+    max_mocap_gap_s: float  # resample.max_gap_s: what passes is what resampling bridges
+    hz: float  # resample.hz: dropouts count on the span of the grid resampling fills
+    max_servo_gap_s: float
+    max_speed_mps: dict
+    min_target_valid_fraction: float
+    target_groups: tuple
+    labels: dict
+    program: dict
+    group_id_pattern: str
 
     @classmethod
     def from_config(cls, config: dict) -> "Limits":
-        g = config.get("gate", {})
-        keys = ("max_servo_gap_s", "max_speed_mps", "min_target_valid_fraction", "labels", "program")
-        kw = {k: g[k] for k in keys if k in g}
-        if "target_groups" in g:
-            kw["target_groups"] = tuple(g["target_groups"])
-        r = config.get("resample", {})
-        if "max_gap_s" in r:
-            kw["max_mocap_gap_s"] = r["max_gap_s"]
-        if "hz" in r:
-            kw["hz"] = float(r["hz"])
-        if "group_id_pattern" in config.get("raw_data", {}):
-            kw["group_id_pattern"] = config["raw_data"]["group_id_pattern"]
-        return cls(**kw)
+        """The limits of a (validated) config; the sampling values come through the protocol."""
+        g = config["gate"]
+        s = params(config, "sampling")["sampling"]
+        return cls(
+            max_mocap_gap_s=s["max_gap_s"],
+            hz=float(s["hz"]),
+            max_servo_gap_s=g["max_servo_gap_s"],
+            max_speed_mps=g["max_speed_mps"],
+            min_target_valid_fraction=g["min_target_valid_fraction"],
+            target_groups=tuple(g["target_groups"]),
+            labels=g["labels"],
+            program=g["program"],
+            group_id_pattern=config["raw_data"]["group_id_pattern"],
+        )
 
     def of(self, table: dict, es: str, cat: str):
         """A per-evidence-set entry: `<set>/<category>` overrides `<set>`."""
@@ -270,11 +247,10 @@ def _check_servo(servo: pd.DataFrame, mocap: pd.DataFrame, path, gid: str, lim: 
 # --- public API ------------------------------------------------------------------------------
 
 
-def validate_group(
-    raw_dir, group_id: str, index_row: dict | None = None, limits: Limits | None = None
-) -> dict:
-    """Every rule for one group; return its raw-manifest entry (sha256 per file)."""
-    lim = limits or Limits()
+def validate_group(raw_dir, group_id: str, index_row: dict | None = None, *, limits: Limits) -> dict:
+    """Every rule for one group, under the config's limits (Limits.from_config); return its
+    raw-manifest entry (sha256 per file)."""
+    lim = limits
     paths = group_paths(raw_dir, group_id)  # ids are names: the folder stays inside raw_dir
     meta = read_meta_checked(paths["meta"], group_id, index_row)
     # Each parquet file is read once: the checked bytes are the hashed bytes.
@@ -367,12 +343,12 @@ def check_folders(raw_dir, group_ids) -> None:
                 )
 
 
-def validate_index(raw_dir, limits: Limits | None = None, open_files: bool = True) -> pd.DataFrame:
+def validate_index(raw_dir, limits: Limits, open_files: bool = True) -> pd.DataFrame:
     """index.csv against the group folders (cheap: parquet footers and meta.json only). With
     open_files=False only the index and the folders' files are looked at (the workflow's index job:
     each group's row counts and meta.json are checked against its row by validate_group, in its
     shard's job, which declares those files)."""
-    lim = limits or Limits()
+    lim = limits
     path = Path(raw_dir) / "index.csv"
     index = read_index(raw_dir, lim.group_id_pattern)
     check_folders(raw_dir, index.group_id)
@@ -394,7 +370,7 @@ def validate_index(raw_dir, limits: Limits | None = None, open_files: bool = Tru
 
 
 def validate_shard(
-    raw_dir, group_ids: list[str], index: pd.DataFrame, limits: Limits | None = None
+    raw_dir, group_ids: list[str], index: pd.DataFrame, limits: Limits
 ) -> list[dict]:
     """Manifest entries of a shard's groups, each checked against its index.csv row."""
     rows = {r["group_id"]: r for r in index.to_dict("records")}
@@ -404,5 +380,5 @@ def validate_shard(
             raise RecordingError(
                 Path(raw_dir) / "index.csv", gid, "no row in index.csv", "every group has an index row"
             )
-        out.append(validate_group(raw_dir, gid, rows[gid], limits))
+        out.append(validate_group(raw_dir, gid, rows[gid], limits=limits))
     return out

@@ -56,7 +56,7 @@ class Verdicts:
             if key is not None and self.passed.get(gid) == key:
                 self.seen.add(gid)
                 continue
-            validate_group(self.raw, gid, self.rows.get(gid), self.limits)
+            validate_group(self.raw, gid, self.rows.get(gid), limits=self.limits)
             if key is not None:
                 self.passed[gid], new = key, True
                 self.seen.add(gid)

@@ -9,13 +9,12 @@ cross groups: every anchor's whole span lies inside its own group's rows.
 
 from __future__ import annotations
 
-import os
 import zipfile
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from .files import write_atomic
 from .protocol import Windows
 from .resample import COMMAND_COLUMNS, STATE_COLUMNS
 
@@ -82,16 +81,16 @@ def make_windows(frames: pd.DataFrame, windows: Windows) -> dict[str, np.ndarray
 
 def save_windows(path, arrays: dict) -> None:
     """Write an .npz with fixed member order and timestamps, so equal arrays give equal bytes."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
-        for key in sorted(arrays):
-            info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.compress_type = zipfile.ZIP_DEFLATED
-            with z.open(info, "w", force_zip64=True) as fh:
-                np.lib.format.write_array(fh, np.asarray(arrays[key]), allow_pickle=False)
-    os.replace(tmp, path)  # never leave half a file under the output's name
+
+    def fill(tmp):
+        with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as z:
+            for key in sorted(arrays):
+                info = zipfile.ZipInfo(f"{key}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                with z.open(info, "w", force_zip64=True) as fh:
+                    np.lib.format.write_array(fh, np.asarray(arrays[key]), allow_pickle=False)
+
+    write_atomic(path, fill)  # never leave half a file under the output's name
 
 
 def load_windows(path) -> dict[str, np.ndarray]:

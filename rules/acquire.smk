@@ -75,7 +75,7 @@ rule twin_phenomena:
         "../envs/esnap.yaml"
     params:
         raw=RAW,
-        protocol=protocol_params("primitive", "rig", "thresholds"),
+        protocol=protocol_params("sampling", "primitive", "rig", "thresholds"),
         groups=select(evidence_set=PHENOMENA_SETS)[
             ["group_id", "evidence_set", "category", "session"]
         ].to_dict("records"),
@@ -102,9 +102,6 @@ rule twin_validation:
         "../envs/esnap.yaml"
     script:
         "../workflow_scripts/twin_validation.py"
-
-
-TWIN_REPORTS = ["results/twin/validation.json"]
 
 
 rule twin_render:

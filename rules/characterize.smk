@@ -32,6 +32,7 @@ rule characterize_kinematics:
         groups=CAL_GROUPS,
         quantile=config["characterize"]["envelope_quantile"],
         tendon_radius_m=config["rig"]["tendon_radius_m"],
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/characterize_kinematics.py"
 
@@ -81,7 +82,7 @@ rule characterize_release:
         groups=select(evidence_set="release_mode")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
-        protocol=protocol_params("rig", "thresholds"),
+        protocol=protocol_params("sampling", "rig", "thresholds"),
     script:
         "../workflow_scripts/characterize_release.py"
 
@@ -106,7 +107,7 @@ rule characterize_attachment:
         groups=select(evidence_set="attachment")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
-        protocol=protocol_params("rig", "thresholds"),
+        protocol=protocol_params("sampling", "rig", "thresholds"),
     script:
         "../workflow_scripts/characterize_attachment.py"
 
@@ -132,7 +133,7 @@ rule characterize_snap:
         groups=select(**SNAP_GROUPS)[["group_id", "category", "session"]].to_dict(
             "records"
         ),
-        protocol=protocol_params("rig", "thresholds"),
+        protocol=protocol_params("sampling", "rig", "thresholds"),
     script:
         "../workflow_scripts/characterize_snap.py"
 
@@ -155,7 +156,7 @@ rule characterize_delay_sweep:
         groups=select(evidence_set="delay_sweep")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
-        protocol=protocol_params("rig"),
+        protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/characterize_delay_sweep.py"
 
@@ -180,6 +181,7 @@ rule characterize_heldbase:
         raw=RAW,
         groups=HELD_GROUPS,
         detectors=config["characterize"]["heldbase"],
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/characterize_heldbase.py"
 

@@ -9,19 +9,26 @@ sys.path.insert(0, workflow.basedir)
 from dataclasses import asdict
 from pathlib import Path
 
-from embodied_snap import budget, protocol
+from embodied_snap import budget, protocol, runconfig
 from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
 from embodied_snap.lineage.groups import deployment_dir
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.paper.sections import category as category_of
 from embodied_snap.plan import PlanError
+from embodied_snap.policy.evaluations import evaluations, training_targets
 from embodied_snap.rawformat import RecordingError, group_paths
 from embodied_snap.verdicts import gate_tree
 
 RAW = config["raw_data"]["dir"]
 BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
+
+# Names the schema leaves to their tables (evidence sets and categories, architectures): an unknown
+# or missing one stops here in one line, as a schema error does (embodied_snap/runconfig.py).
+NAMES_ERROR = runconfig.names_error(config)
+if NAMES_ERROR:
+    sys.exit(f"error: {NAMES_ERROR}")
 
 # raw_data/ and results/ hold one budget's run at a time (docs/design.md, "Budgets"): asking for
 # another stops here with exactly one line (no WorkflowError frame around it), naming both
@@ -85,12 +92,6 @@ def reads_recordings(wildcards, input):
     return int(any(str(f).startswith(f"{RAW}/") for f in input))
 
 
-def shared_run(wildcards):
-    """Priority of a policy search or evaluation: 1 for a shared run (SHARED_RUNS, rules/policy.smk),
-    which the ablation and the deployment read."""
-    return int(f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS)
-
-
 def imports(script):
     """Code inputs of a rule: the package modules workflow_scripts/<script>.py imports,
     transitively (read from the sources, never typed), so that editing a module reruns exactly
@@ -109,9 +110,6 @@ def shard_raw(wildcards):
         checkpoints.twin_acquire.get(shard=wildcards.shard)
     gate(SHARDS[wildcards.shard])
     return group_files(SHARDS[wildcards.shard])
-
-
-TWIN_REPORTS = []  # the simulated rig adds its reports
 
 
 def raw_index():
@@ -156,29 +154,6 @@ def validated(**where):
     return expand("results/raw/shards/{shard}.json", shard=shards)
 
 
-# --- robustness variants (rules/robustness.smk) ---------------------------------------------------
-
-
-def rob_run(wc):
-    """The run a variant evaluates: its own search, or the benchmark's run for a smaller budget."""
-    if wc.variant in SHORTER:
-        return f"{POL}/runs/{wc.arch}_seed{wc.seed}.json"
-    return f"{ROB}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
-
-
-def rob_targets(name):
-    """A variant's target set: the uniform ones, or the benchmark's."""
-    return lambda wc: (
-        UNIFORM_TARGETS[name]
-        if wc.variant == "uniform"
-        else f"{POL}/targets_{name}.parquet"
-    )
-
-
-def rob_evals(variant):
-    return [f"{ROB}/{variant}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
-
-
 # The HTML report (docs/report.md): the ledger job writes each item's caption here (its static
 # caption from report/, the ledger's numbers for its paper sections, its lineage).
 CAPTIONS = "results/report"
@@ -209,3 +184,75 @@ def claims_tables(wildcards=None):
 
 # Fig. 1b shows the first attachment trial: a recorded strike at a target, every release labelled.
 FIG1_GROUP = min(select(evidence_set="attachment").group_id)
+
+
+# --- What the stages hand each other --------------------------------------------------------------
+# The files a stage reads from an earlier one are named here, once, so that each rule file reads
+# only this file and its own names, and the include order carries no meaning.
+
+# The dynamics model (rules/dynamics.smk): the GRU ensemble, and the training groups whose holds
+# the hold bank is built from.
+DYN = "results/dynamics"
+DCFG = config["dynamics"]
+DMODELS = expand(f"{DYN}/models/seed{{seed}}.pt", seed=DCFG["seeds"])
+HOLD = dict(evidence_set="dynamics", role="train")
+HOLD_GROUPS = sorted(select(**HOLD).group_id)
+
+# Policy search (rules/policy.smk): the runs of every architecture and seed, the shared ones that
+# the ablation and the deployment read, and the simulator each later stage rolls policies out in.
+POL = "results/policy"
+PCFG = config["policy"]
+PBUDGET = BUDGET["policy"]
+POLICY_RUNS_OF = [
+    (arch, seed) for arch, n in PBUDGET["seeds"].items() for seed in range(n)
+]
+# The target sets a search draws: training ones for every generation, selection, evaluation.
+TARGET_SIZES = dict(
+    training=training_targets(PBUDGET["generations"], PBUDGET["targets_per_candidate"]),
+    selection=PBUDGET["selection_targets"],
+    evaluation=PBUDGET["evaluation_targets"],
+)
+POLICY_RUNS = [f"{POL}/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF]
+POLICY_EVALS = [f"{POL}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
+SHARED_RUNS = [
+    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
+]
+SIMULATOR = dict(
+    models=DMODELS,
+    bank=f"{DYN}/hold_bank.npz",
+    snap="results/characterize/snap.json",
+    workspace=f"{POL}/workspace.json",
+)
+SIM_PARAMS = dict(
+    policy=PCFG,
+    after_s1=DCFG["after_s1_s"],
+    ee_m=config["rig"]["end_effector_m"],
+    protocol=protocol_params("sampling", "windows", "primitive"),
+)
+
+
+def shared_run(wildcards):
+    """Priority of a policy search or evaluation: 1 for a shared run (SHARED_RUNS), which the
+    ablation and the deployment read."""
+    return int(f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS)
+
+
+# The deployment (rules/deploy.smk): the manifest, and the trials recorded with it. Trials exist,
+# or the simulated rig records them: Table II and Fig. 7 are built. On a real rig they are recorded
+# in the lab after export (`esnap deploy`, docs/deployment.md); until then the workflow builds the
+# manifest and stops there.
+DEPLOY = "results/deployment"
+DEPLOY_RAW = deployment_dir(RAW)
+DEPLOYED = TWIN or Path(DEPLOY_RAW, "index.csv").exists()
+# Everything the manifest hashes: the separation proof re-hashes them (nothing changed after export).
+MANIFEST_INPUTS = dict(
+    runs=SHARED_RUNS,
+    workspace=f"{POL}/workspace.json",
+    servo="results/characterize/servo.json",
+    bank=f"{DYN}/hold_bank.npz",
+    snap="results/characterize/snap.json",
+    models=DMODELS,
+)
+MANIFEST_FILES = [
+    f for v in MANIFEST_INPUTS.values() for f in (v if isinstance(v, list) else [v])
+]

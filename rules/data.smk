@@ -79,8 +79,7 @@ rule resample_shard:
     params:
         raw=RAW,
         groups=lambda wc: SHARDS[wc.shard],
-        hz=config["resample"]["hz"],
-        max_gap_s=config["resample"]["max_gap_s"],
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/resample_shard.py"
 

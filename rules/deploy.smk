@@ -3,26 +3,10 @@
 # virtual Dynamixel bus; with a real rig: recorded in the lab into DEPLOY_RAW), Table II and Fig. 7.
 # The deployment recordings feed only Table II and Fig. 7 (esnap check-separation).
 
-DEPLOY = "results/deployment"
-DEPLOY_RAW = deployment_dir(RAW)
-# Trials exist, or the simulated rig records them: Table II and Fig. 7 are built. On a real rig they
-# are recorded in the lab after export (`esnap deploy`, docs/deployment.md); until then the workflow
-# builds the manifest and stops there.
-DEPLOYED = TWIN or Path(DEPLOY_RAW, "index.csv").exists()
+# DEPLOY, DEPLOY_RAW, DEPLOYED and the manifest's inputs (MANIFEST_INPUTS, MANIFEST_FILES), which
+# the lineage and the report read too, are rules/common.smk's.
 DCONF = config["deployment"]
 DBUDGET = BUDGET["deployment"]
-# Everything the manifest hashes: the separation proof re-hashes them (nothing changed after export).
-MANIFEST_INPUTS = dict(
-    runs=SHARED_RUNS,
-    workspace=f"{POL}/workspace.json",
-    servo="results/characterize/servo.json",
-    bank=f"{DYN}/hold_bank.npz",
-    snap="results/characterize/snap.json",
-    models=DMODELS,
-)
-MANIFEST_FILES = [
-    f for v in MANIFEST_INPUTS.values() for f in (v if isinstance(v, list) else [v])
-]
 
 
 rule deploy_manifest:
@@ -73,6 +57,7 @@ if TWIN:
             sessions=config["sessions"],
             dt=config["twin"]["dt"],
             speed_mps=config["characterize"]["attach_speed_mps"],
+            gate=asdict(LIMITS),
         script:
             "../workflow_scripts/twin_deployment.py"
 
@@ -108,6 +93,7 @@ if DEPLOYED:
         params:
             bend_deg=DCONF["preload_bend_deg"],
             fast_mps=DCONF["fast_snap_mps"],
+            protocol=protocol_params("sampling"),
         script:
             "../workflow_scripts/deploy_table.py"
 

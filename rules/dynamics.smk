@@ -3,17 +3,11 @@
 # model, Fig. 4 and results/dynamics/claims.csv. Training and model selection see the train and
 # validation windows only; windows_sealed.npz reaches dynamics_sealed_eval alone, after selection.
 
-DYN = "results/dynamics"
-DCFG = config["dynamics"]
+# DYN, DCFG, DMODELS, HOLD and HOLD_GROUPS, which later stages read too, are rules/common.smk's.
 DSEEDS = DCFG["seeds"]
-DMODELS = expand(f"{DYN}/models/seed{{seed}}.pt", seed=DSEEDS)
 DVALID = expand(f"{DYN}/validation/seed{{seed}}.json", seed=DSEEDS)
 SWEEP = dict(evidence_set="delay_sweep")
-HOLD = dict(evidence_set="dynamics", role="train")
 SWEEP_SHARDS = sorted(PLAN[PLAN.evidence_set == "delay_sweep"].shard.unique())
-HOLD_GROUPS = sorted(
-    PLAN[(PLAN.evidence_set == "dynamics") & (PLAN.role == "train")].group_id
-)
 
 
 wildcard_constraints:

@@ -54,20 +54,3 @@ rule prov_export:
         raw=lambda wc, input: os.path.dirname(input.index),
     script:
         "../workflow_scripts/prov_export.py"
-
-
-rule crate:
-    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product, the
-    robustness variants' too once they exist (a later `snakemake all` then rewrites the crate).
-    """
-    input:
-        lambda wc: PRODUCTS + [f for f in ROBUSTNESS if Path(f).exists()],
-        code=imports("crate"),
-    output:
-        "results/crate/ro-crate-metadata.json",
-    log:
-        "logs/crate.log",
-    conda:
-        "../envs/esnap.yaml"
-    script:
-        "../workflow_scripts/crate.py"

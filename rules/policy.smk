@@ -3,30 +3,8 @@
 # targets, the best fixed primitive, the analyses, Fig. 5 and results/policy/claims.csv.
 # Evaluation targets are read only by policy_evaluate and policy_fixed (esnap check-separation).
 
-POL = "results/policy"
-PCFG = config["policy"]
-PBUDGET = BUDGET["policy"]
-POLICY_RUNS_OF = [
-    (arch, seed) for arch, n in PBUDGET["seeds"].items() for seed in range(n)
-]
-POLICY_RUNS = [f"{POL}/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF]
-POLICY_EVALS = [f"{POL}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
-# The shared architecture's runs: what the ablation and the deployment read, so searched first.
-SHARED_RUNS = [
-    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
-]
-SIMULATOR = dict(
-    models=DMODELS,
-    bank=f"{DYN}/hold_bank.npz",
-    snap="results/characterize/snap.json",
-    workspace=f"{POL}/workspace.json",
-)
-SIM_PARAMS = dict(
-    policy=PCFG,
-    after_s1=DCFG["after_s1_s"],
-    ee_m=config["rig"]["end_effector_m"],
-    protocol=protocol_params("sampling", "windows", "primitive"),
-)
+# POL, PCFG, PBUDGET, the runs (POLICY_RUNS_OF, POLICY_RUNS, POLICY_EVALS, SHARED_RUNS) and the
+# simulator (SIMULATOR, SIM_PARAMS), which later stages read too, are rules/common.smk's.
 
 
 wildcard_constraints:
@@ -70,11 +48,7 @@ rule policy_targets:
     conda:
         "../envs/esnap.yaml"
     params:
-        sizes=dict(
-            training=PBUDGET["generations"] * PBUDGET["targets_per_candidate"],
-            selection=PBUDGET["selection_targets"],
-            evaluation=PBUDGET["evaluation_targets"],
-        ),
+        sizes=TARGET_SIZES,
         per_generation=PBUDGET["targets_per_candidate"],
         seeds=PCFG["target_seeds"],
         arc_deg=PCFG["arc_deg"],
@@ -186,9 +160,11 @@ rule policy_summary:
         tolerances=PCFG["tolerances_m"],
         d_f=PCFG["reward"]["d_f_m"],
         v_min=PCFG["reward"]["v_min_sim_mps"],
-        budget_evaluations=PBUDGET["generations"]
-        * PBUDGET["popsize"]
-        * PBUDGET["targets_per_candidate"],
+        budget_evaluations=evaluations(
+            PBUDGET["generations"],
+            PBUDGET["popsize"],
+            PBUDGET["targets_per_candidate"],
+        ),
         protocol=protocol_params("primitive"),
     script:
         "../workflow_scripts/policy_summary.py"

@@ -74,6 +74,7 @@ rule fig_system:
     params:
         raw=RAW,
         group=FIG1_GROUP,
+        protocol=protocol_params("sampling"),
     script:
         "../workflow_scripts/fig_system.py"
 

@@ -40,11 +40,7 @@ rule robustness_targets:
     conda:
         "../envs/esnap.yaml"
     params:
-        uniform_sizes=dict(
-            training=GENERATIONS * PBUDGET["targets_per_candidate"],
-            selection=PBUDGET["selection_targets"],
-            evaluation=PBUDGET["evaluation_targets"],
-        ),
+        uniform_sizes=TARGET_SIZES,
         extension=(
             GENERATIONS,
             max([BUDGET_GENERATIONS[v] for v in LONGER], default=GENERATIONS),
@@ -57,8 +53,7 @@ rule robustness_targets:
         "../workflow_scripts/robustness_targets.py"
 
 
-rule robustness_search_uniform:
-    """The benchmark's CMA-ES run for one architecture and seed, on uniform workspace targets."""
+use rule policy_search as robustness_search_uniform with:
     input:
         **SIMULATOR,
         training=UNIFORM_TARGETS["training"],
@@ -71,22 +66,12 @@ rule robustness_search_uniform:
         "logs/robustness/search_uniform_{arch}_seed{seed}.log",
     benchmark:
         "benchmarks/robustness/search_uniform_{arch}_seed{seed}.tsv"
-    conda:
-        "../envs/esnap.yaml"
-    threads: 1
+    priority: 0
     params:
-        **SIM_PARAMS,
-        arch=lambda wc: wc.arch,
-        seed=lambda wc: int(wc.seed),
-        generations=GENERATIONS,
-        popsize=PBUDGET["popsize"],
         snapshots=[],
-    script:
-        "../workflow_scripts/policy_search.py"
 
 
-rule robustness_search_longer:
-    """The benchmark's run continued from its CMA-ES state to a larger budget."""
+use rule policy_search as robustness_search_longer with:
     input:
         **SIMULATOR,
         resume=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
@@ -101,18 +86,10 @@ rule robustness_search_longer:
         "logs/robustness/search_{longer}_{arch}_seed{seed}.log",
     benchmark:
         "benchmarks/robustness/search_{longer}_{arch}_seed{seed}.tsv"
-    conda:
-        "../envs/esnap.yaml"
-    threads: 1
+    priority: 0
     params:
-        **SIM_PARAMS,
-        arch=lambda wc: wc.arch,
-        seed=lambda wc: int(wc.seed),
         generations=lambda wc: BUDGET_GENERATIONS[wc.longer],
-        popsize=PBUDGET["popsize"],
         snapshots=[],
-    script:
-        "../workflow_scripts/policy_search.py"
 
 
 rule robustness_fixed:
@@ -141,8 +118,17 @@ rule robustness_evaluate:
     """A variant's selected policy of one run on that variant's evaluation targets."""
     input:
         **SIMULATOR,
-        run=rob_run,
-        evaluation=rob_targets("evaluation"),
+        # a smaller budget's run is the benchmark's, stopped there
+        run=lambda wc: (
+            f"{POL}/runs/{wc.arch}_seed{wc.seed}.json"
+            if wc.variant in SHORTER
+            else f"{ROB}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
+        ),
+        evaluation=lambda wc: (
+            UNIFORM_TARGETS["evaluation"]
+            if wc.variant == "uniform"
+            else f"{POL}/targets_evaluation.parquet"
+        ),
         code=imports("policy_evaluate"),
     output:
         f"{ROB}/{{variant}}/eval/{{arch}}_seed{{seed}}.parquet",
@@ -174,7 +160,11 @@ rule robustness_summary:
             for v in LONGER
             for a, s in POLICY_RUNS_OF
         ],
-        evals=[f for v in ROB_VARIANTS for f in rob_evals(v)],
+        evals=[
+            f"{ROB}/{v}/eval/{a}_seed{s}.parquet"
+            for v in ROB_VARIANTS
+            for a, s in POLICY_RUNS_OF
+        ],
         code=imports("robustness_summary"),
     output:
         f"{ROB}/summary.json",
@@ -189,7 +179,9 @@ rule robustness_summary:
         tolerances=PCFG["tolerances_m"],
         d_f=PCFG["reward"]["d_f_m"],
         v_min=PCFG["reward"]["v_min_sim_mps"],
-        evaluations_per_generation=PBUDGET["popsize"] * PBUDGET["targets_per_candidate"],
+        evaluations_per_generation=evaluations(
+            1, PBUDGET["popsize"], PBUDGET["targets_per_candidate"]
+        ),
         protocol=protocol_params("primitive"),
     script:
         "../workflow_scripts/robustness_summary.py"

@@ -55,6 +55,6 @@ def smoke_run(tmp_path_factory):
         )
     snakemake(d, "all", "robustness")
     # The crate comes after every product; robustness products made in the same run may finish
-    # after it, and the next `snakemake all` rewrites it to list them (rules/lineage.smk).
+    # after it, and the next `snakemake all` rewrites it to list them (the Snakefile's `crate`).
     snakemake(d, "all")
     return d

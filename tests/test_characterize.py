@@ -12,6 +12,8 @@ from embodied_snap.characterize.claims import OURS
 from embodied_snap.characterize.claims import rows as claim_rows
 from embodied_snap.reference import paper_values
 
+from paper_protocol import PROTO
+
 
 def quat_axis_angle(axis, ang):
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
@@ -162,8 +164,8 @@ def test_tip_speed_and_bend_rate_of_known_motion():
     mc["tip_x"] = 1.5 * t  # 1.5 m/s
     q = np.array([quat_axis_angle([0, 0, 1], 2.0 * ti) for ti in t])  # S3 bends at 2 rad/s
     mc[["tip_qw", "tip_qx", "tip_qy", "tip_qz"]] = q
-    assert np.nanmedian(M.tip_speed(mc)) == pytest.approx(1.5, rel=1e-6)
-    r = M.section_rates(mc)
+    assert np.nanmedian(M.tip_speed(mc, PROTO.sampling.max_gap_s)) == pytest.approx(1.5, rel=1e-6)
+    r = M.section_rates(mc, PROTO.sampling.max_gap_s)
     assert np.nanmedian(r[:, 2]) == pytest.approx(2.0, rel=1e-3)
     assert np.nanmax(r[:, :2]) == pytest.approx(0.0, abs=1e-9)
     assert n == len(r)

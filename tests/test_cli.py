@@ -203,13 +203,19 @@ def test_config_does_not_swallow_the_positional(cwd):
 
 
 def test_config_is_snakemakes(cwd):
-    """The same config a snakemake run with these arguments validates: file, overrides, defaults."""
+    """The same config a snakemake run with these arguments validates: config.yaml, the file, the
+    overrides, merged as Snakemake merges them; the schema fills nothing in (it has no defaults)."""
     from embodied_snap import runconfig
 
     (cwd / "more.yaml").write_text("resample: {hz: 25}\n")
     cfg = runconfig.load("more.yaml", ["budget=smoke", "raw_data={source: rig}"])
     assert cfg["budget"] == "smoke" and cfg["resample"]["hz"] == 25 and cfg["raw_data"]["source"] == "rig"
-    assert cfg["raw_data"]["dir"] == "raw_data"  # the schema's default, filled in as Snakemake does
+    assert cfg["raw_data"]["dir"] == "raw_data"  # config.yaml's, kept: an override updates a section
+    (cwd / "config.yaml").unlink()  # no workflow config: the file alone, and it lacks keys
+    with pytest.raises(runconfig.ConfigError) as e:
+        runconfig.load("more.yaml", ["budget=smoke"])
+    says = str(e.value)
+    assert says.startswith("config: ") and says.endswith("is a required property") and "\n" not in says, says
 
 
 def test_version(capsys):

@@ -380,7 +380,7 @@ def test_separation_sees_a_changed_input_or_another_manifest(man_path, tmp_path)
 def test_table2_counts_and_paper_column():
     import pandas as pd
 
-    from embodied_snap.characterize import deployment as D
+    from embodied_snap.deploy import table2 as D
 
     df = pd.DataFrame(dict(placement=[1, 1, 2, 3], s2_bend_increase_deg=[120.0, 109.0, 130.0, 111.0],
                            v_peak_mps=[1.2, 0.9, 1.5, 1.0], retrieved=[True, False, False, True],

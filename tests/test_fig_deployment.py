@@ -7,6 +7,8 @@ import pytest
 
 from embodied_snap.figures import deployment as F
 
+from paper_protocol import PROTO
+
 
 def test_arc_is_a_circle_tangent_at_its_start_through_its_end():
     a, t, b = np.zeros(3), np.array([0.0, -1.0, 0.0]), np.array([0.3, -0.3, 0.0])  # a quarter circle
@@ -45,10 +47,10 @@ def _trial(t_carry=2.6):
 
 def test_moments_are_in_the_papers_order():
     mc, meta = _trial()
-    m = F.moments(mc, meta, 0.0)
+    m = F.moments(mc, meta, 0.0, PROTO.sampling.max_gap_s)
     assert list(m) == list(F.MOMENTS)
     assert m["hanging"] == 0.125 and m["preload"] == 1.0
     assert m["snap"] == pytest.approx(2.05, abs=0.01)  # halfway from the release to the block
     assert m["reach"] == pytest.approx(2.3, abs=0.005) and m["attachment"] == 2.6
     with pytest.raises(ValueError, match="dep_0001: moments out of order"):
-        F.moments(*_trial(t_carry=2.2), 0.0)
+        F.moments(*_trial(t_carry=2.2), 0.0, PROTO.sampling.max_gap_s)

@@ -5,6 +5,7 @@ downstream code that raises instead of dropping a group."""
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
 
 import pandas as pd
@@ -15,18 +16,19 @@ from embodied_snap import sealed
 from embodied_snap.characterize import attachment
 from embodied_snap.plan import PlanError, load_plan
 from embodied_snap.rawformat import RecordingError, group_dir, group_paths
-from embodied_snap.validate import Limits, validate_group
+from embodied_snap.validate import validate_group
 from embodied_snap.verdicts import Verdicts
 
 from fakerig import write_fake_raw
+from paper_protocol import LIMITS
 
 REPO = Path(__file__).resolve().parent.parent
 CFG = yaml.safe_load((REPO / "config.yaml").read_text())
 
 
-def test_code_defaults_are_config_yaml():
-    assert Limits.from_config(CFG) == Limits()
-    assert Limits.from_config(CFG).max_mocap_gap_s == CFG["resample"]["max_gap_s"]
+def test_limits_come_from_config_yaml():
+    assert LIMITS.max_mocap_gap_s == CFG["resample"]["max_gap_s"]
+    assert LIMITS.max_servo_gap_s == CFG["gate"]["max_servo_gap_s"]
 
 
 @pytest.mark.parametrize("gid", ["../x", "../../etc", "/etc", "a/../../b"])
@@ -58,30 +60,30 @@ def test_verdicts_remember_passes_only(raw, tmp_path, monkeypatch):
     real = V.validate_group
     monkeypatch.setattr(V, "validate_group", lambda *a, **k: (calls.append(a[1]), real(*a, **k))[1])
     cache = tmp_path / "gate.json"
-    Verdicts(raw, Limits(), {}, cache).check(["dyn_0001", "dyn_0002"])
+    Verdicts(raw, LIMITS, {}, cache).check(["dyn_0001", "dyn_0002"])
     assert calls == ["dyn_0001", "dyn_0002"]
-    Verdicts(raw, Limits(), {}, cache).check(["dyn_0001", "dyn_0002"])  # a rebuild: nothing re-read
+    Verdicts(raw, LIMITS, {}, cache).check(["dyn_0001", "dyn_0002"])  # a rebuild: nothing re-read
     assert calls == ["dyn_0001", "dyn_0002"]
     # a changed file is judged again; its rejection is not remembered
     p = group_paths(raw, "dyn_0002")["meta"]
     p.write_text(p.read_text().replace('"session"', '"format_version": 2, "session"'))
     for _ in range(2):
         with pytest.raises(RecordingError, match="format version 1"):
-            Verdicts(raw, Limits(), {}, cache).check(["dyn_0001", "dyn_0002"])
+            Verdicts(raw, LIMITS, {}, cache).check(["dyn_0001", "dyn_0002"])
     assert calls == ["dyn_0001", "dyn_0002", "dyn_0002", "dyn_0002"]
     # other limits: every verdict is judged again
-    Verdicts(raw, Limits(max_servo_gap_s=0.04), {}, cache).check(["dyn_0001"])
+    Verdicts(raw, replace(LIMITS, max_servo_gap_s=0.04), {}, cache).check(["dyn_0001"])
     assert calls[-1] == "dyn_0001"
 
 
 def test_stricter_limits_reject_what_defaults_pass(raw):
-    validate_group(raw, "dyn_0001")
+    validate_group(raw, "dyn_0001", limits=LIMITS)
     with pytest.raises(RecordingError, match=r"rule: tip speed <= 0\.1 m/s"):
-        validate_group(raw, "dyn_0001", limits=Limits(max_speed_mps={"tip": 0.1}))
+        validate_group(raw, "dyn_0001", limits=replace(LIMITS, max_speed_mps={"tip": 0.1}))
     with pytest.raises(RecordingError, match=r"rule: servo log gap <= 0\.005 s"):
-        validate_group(raw, "dyn_0001", limits=Limits(max_servo_gap_s=0.005))
+        validate_group(raw, "dyn_0001", limits=replace(LIMITS, max_servo_gap_s=0.005))
     with pytest.raises(RecordingError, match=r"rule: labels complete per evidence set"):
-        validate_group(raw, "dyn_0001", limits=Limits(labels={"dynamics": ["t_attach"]}))
+        validate_group(raw, "dyn_0001", limits=replace(LIMITS, labels={"dynamics": ["t_attach"]}))
 
 
 def _plan(ids_cats):
@@ -277,7 +279,7 @@ def test_a_file_linked_out_is_refused_before_it_is_opened(raw, tmp_path, name):
     rule = r"\(rule: file inside the raw directory\)$"
     with opens() as seen:
         with pytest.raises(RecordingError, match=rf"groups/dyn_0002/{name}: group dyn_0002: a link to .*{rule}"):
-            Verdicts(raw, Limits(), {}, None).check(["dyn_0001", "dyn_0002"])
+            Verdicts(raw, LIMITS, {}, None).check(["dyn_0001", "dyn_0002"])
         with pytest.raises(RecordingError, match=rule):
             group_paths(raw, "dyn_0002")  # so no job is handed the path either
     assert seen and not opened_any(seen, [str(target.resolve())])
@@ -288,7 +290,7 @@ def test_a_link_to_etc_passwd_is_never_read(raw, tmp_path):
 
     _link_out(raw, tmp_path, "dyn_0001", "meta.json", target=Path("/etc/passwd"))
     with opens() as seen, pytest.raises(RecordingError, match="a link to /etc/passwd, outside"):
-        validate_group(raw, "dyn_0001")
+        validate_group(raw, "dyn_0001", limits=LIMITS)
     assert not opened_any(seen, [os.path.realpath("/etc/passwd")])
 
 
@@ -323,10 +325,10 @@ def test_a_link_that_stays_inside_is_allowed(raw):
     (raw / ".store").mkdir()
     p.rename(raw / ".store" / "servo.parquet")
     p.symlink_to(Path("..", "..", ".store", "servo.parquet"))
-    validate_group(raw, "dyn_0001")
+    validate_group(raw, "dyn_0001", limits=LIMITS)
     (raw / "groups" / "dyn_0002").rename(raw / ".store" / "dyn_0002")
     (raw / "groups" / "dyn_0002").symlink_to(raw / ".store" / "dyn_0002")
-    validate_group(raw, "dyn_0002")
+    validate_group(raw, "dyn_0002", limits=LIMITS)
 
 
 # --- one gate in every mode -----------------------------------------------------------------

@@ -7,6 +7,7 @@ binary-exact, so "just outside" by a millisecond is unambiguous)."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,9 +18,10 @@ import yaml
 
 from embodied_snap import rawschema as RS
 from embodied_snap.rawformat import group_paths, write_json, write_parquet
-from embodied_snap.validate import Limits, RecordingError, validate_group
+from embodied_snap.validate import RecordingError, validate_group
 
 from fakerig import write_fake_group
+from paper_protocol import LIMITS
 
 G = "dyn_0001"
 T0, DURATION_S, HZ = 12.5, 3.0, 240.0
@@ -58,21 +60,21 @@ def test_label_just_after_the_recording_end_is_refused(tmp_path, key):
     raw = _group(tmp_path)
     _set_label(raw, key, T_END + 0.001)
     with pytest.raises(RecordingError, match=rf"label {key}=15\.501 is not a time in 12\.500\.\.15\.500 s"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 def test_label_just_before_the_recording_start_is_refused(tmp_path):
     raw = _group(tmp_path)
     _set_label(raw, "t_preload", T0 - 0.001)
     with pytest.raises(RecordingError, match=r"rule: label times inside the recording"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 def test_labels_on_the_first_and_last_sample_pass(tmp_path):
     raw = _group(tmp_path)
     _set_label(raw, "t_preload", T0)
     _set_label(raw, "t_s1", T_END)
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
 
 
 @pytest.mark.parametrize("value", [True, "15.0", [14.0]])
@@ -80,7 +82,7 @@ def test_a_label_time_that_is_not_a_number_is_refused(tmp_path, value):
     raw = _group(tmp_path)
     _set_label(raw, "t_s1", value)
     with pytest.raises(RecordingError, match=r"rule: label times inside the recording"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 # --- speed limits: one jump of a known size between two consecutive 240 Hz samples -----------------
@@ -102,18 +104,18 @@ def _jump(raw, body, factor, at_s=1.0):
 @pytest.mark.parametrize("body", sorted(MAX_SPEED))
 def test_a_speed_just_over_each_body_limit_is_refused(tmp_path, body):
     raw = _group(tmp_path, "target", static=True, dropouts=())
-    assert validate_group(raw, G)["group_id"] == G  # the static arm passes
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G  # the static arm passes
     _jump(raw, body, 1.01)
     # the jump is from the sample at t0 + 239/240 s = 13.496 s
     with pytest.raises(RecordingError, match=rf"at t=13\.496 s \(rule: {body} speed <= {MAX_SPEED[body]:g} m/s\)"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 @pytest.mark.parametrize("body", sorted(MAX_SPEED))
 def test_a_speed_just_under_each_body_limit_passes(tmp_path, body):
     raw = _group(tmp_path, "target", static=True, dropouts=())
     _jump(raw, body, 0.99)
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
 
 
 def test_the_limit_applies_across_a_dropout_to_the_next_tracked_sample(tmp_path):
@@ -128,10 +130,10 @@ def test_the_limit_applies_across_a_dropout_to_the_next_tracked_sample(tmp_path)
         df.loc[df.index[k + 1 :], "tip_x"] += factor * MAX_SPEED["tip"] / HZ
         write_parquet(df, p)
         if ok:
-            assert validate_group(raw, G)["group_id"] == G
+            assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
         else:
             with pytest.raises(RecordingError, match=r"rule: tip speed <= 10 m/s"):
-                validate_group(raw, G)
+                validate_group(raw, G, limits=LIMITS)
 
 
 
@@ -160,13 +162,13 @@ def test_a_dropout_just_over_the_bridged_gap_is_refused(tmp_path, body):
     assert CONFIG["resample"]["max_gap_s"] == 0.1
     raw = _group(tmp_path / "ok", dropouts=())
     _edit_mocap(raw, lambda df: _lose(df, body, 300, 22))
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
     raw = _group(tmp_path / "bad", dropouts=())
     _edit_mocap(raw, lambda df: _lose(df, body, 300, 24))
     # tracked at sample 299 (t0 + 299/240 = 13.746 s) and again at sample 324 (13.850 s)
     with pytest.raises(RecordingError, match=rf"{body} not tracked for 0\.104 s from t=13\.746 to t=13\.850 s "
                        r"\(rule: mocap dropout <= 0\.1 s\)"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 @pytest.mark.parametrize("at", ["start", "end"])
@@ -177,7 +179,7 @@ def test_a_dropout_at_the_recordings_edge_counts_from_the_edge(tmp_path, at):
     n = 721
     _edit_mocap(raw, lambda df: _lose(df, "tip", 0 if at == "start" else n - 30, 30))
     with pytest.raises(RecordingError, match=r"tip not tracked for .*rule: mocap dropout <= 0\.1 s"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 def test_the_target_must_be_tracked_in_half_the_samples(tmp_path):
@@ -194,7 +196,7 @@ def test_the_target_must_be_tracked_in_half_the_samples(tmp_path):
 
     raw = _group(tmp_path / "ok", "target", dropouts=())
     _edit_mocap(raw, every_other(360))
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
     raw = _group(tmp_path / "bad", "target", dropouts=())
     _edit_mocap(raw, every_other(360))
     _edit_mocap(raw, lambda df: _lose(df, "target", 0, 1))  # sample 0: one more lost
@@ -213,18 +215,18 @@ def test_the_servo_log_may_start_up_to_50_ms_after_the_mocap(tmp_path):
     """rawschema COVER_TOL_S = 0.05 s (the resampler's edge); fakerig's log starts 30 ms before."""
     raw = _group(tmp_path / "ok")
     _edit_servo(raw, lambda s: s[s.t >= T0 + 0.04])
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
     raw = _group(tmp_path / "bad")
     _edit_servo(raw, lambda s: s[s.t >= T0 + 0.06])
     with pytest.raises(RecordingError, match=r"rule: servo log covers mocap"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
     raw = _group(tmp_path / "end")
     _edit_servo(raw, lambda s: s[s.t <= T_END - 0.06])
     with pytest.raises(RecordingError, match=r"rule: servo log covers mocap"):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
     raw = _group(tmp_path / "end-ok")
     _edit_servo(raw, lambda s: s[s.t <= T_END - 0.04])
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
 
 
 def test_a_servo_gap_just_over_50_ms_is_refused(tmp_path):
@@ -240,16 +242,16 @@ def test_a_servo_gap_just_over_50_ms_is_refused(tmp_path):
         assert (gap <= 0.05) == ok
         _edit_servo(raw, lambda s, keep=keep: s[keep])
         if ok:
-            assert validate_group(raw, G)["group_id"] == G
+            assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
         else:
             with pytest.raises(RecordingError, match=rf"no sync-read for {gap:.3f} s .*rule: servo log gap <= 0\.05 s"):
-                validate_group(raw, G)
+                validate_group(raw, G, limits=LIMITS)
 
 
 # --- the whole message: file, group, what, rule ------------------------------------------------------
 
 
-def _refusal(raw, kind, what, rule, limits=None):
+def _refusal(raw, kind, what, rule, limits=LIMITS):
     with pytest.raises(RecordingError) as e:
         validate_group(raw, G, limits=limits)
     assert str(e.value) == f"{group_paths(raw, G)[kind]}: group {G}: {what} (rule: {rule})"
@@ -257,9 +259,9 @@ def _refusal(raw, kind, what, rule, limits=None):
 
 def test_meta_refusals_name_the_file_the_group_and_the_rule(tmp_path):
     raw = _group(tmp_path / "a")
-    no_dyn = Limits(labels={k: v for k, v in Limits().labels.items() if not k.startswith("dynamics")})
+    no_dyn = replace(LIMITS, labels={k: v for k, v in LIMITS.labels.items() if not k.startswith("dynamics")})
     _refusal(raw, "meta", "no gate.labels entry for dynamics", "gate.labels names every evidence set", no_dyn)
-    no_prog = Limits(program={k: v for k, v in Limits().program.items() if k != "dynamics"})
+    no_prog = replace(LIMITS, program={k: v for k, v in LIMITS.program.items() if k != "dynamics"})
     _refusal(raw, "meta", "no gate.program entry for dynamics", "gate.program names every evidence set", no_prog)
     _set_label(raw, "t_s1", None)
     _refusal(raw, "meta", "labels has no 't_s1' (dynamics/free_space needs snap_speed_event, t_preload, t_slack, "
@@ -275,7 +277,7 @@ def test_a_hole_in_the_mocap_rows(tmp_path):
     limit is inclusive); 48 gone leave 49/240 = 0.204 s, refused with both ends of the hole."""
     raw = _group(tmp_path / "ok", dropouts=())
     _edit_mocap(raw, lambda df: df.drop(index=df.index[300:323]).reset_index(drop=True))
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
     raw = _group(tmp_path / "bad", dropouts=())
     _edit_mocap(raw, lambda df: df.drop(index=df.index[300:348]).reset_index(drop=True))
     _refusal(raw, "mocap", "no sample for 0.204 s from t=13.746 to t=13.950 s", "mocap hole <= 0.1 s")
@@ -284,7 +286,7 @@ def test_a_hole_in_the_mocap_rows(tmp_path):
 def test_a_dropout_of_exactly_the_bridged_gap_passes(tmp_path):
     raw = _group(tmp_path, dropouts=())
     _edit_mocap(raw, lambda df: _lose(df, "s2", 300, 23))  # tracked at 299 and 323: 24/240 = 0.1 s
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
 
 
 def test_a_body_never_tracked(tmp_path):
@@ -361,7 +363,7 @@ def test_a_bad_identity_field_in_meta_is_refused(tmp_path, key, value):
     p = group_paths(raw, G)["meta"]
     write_json({**json.loads(p.read_text()), key: value}, p)
     with pytest.raises(RecordingError, match=rf"^{p}: group {G}: "):
-        validate_group(raw, G)
+        validate_group(raw, G, limits=LIMITS)
 
 
 def test_a_non_ascii_session_takes_the_schemas_path_and_passes(tmp_path):
@@ -370,7 +372,7 @@ def test_a_non_ascii_session_takes_the_schemas_path_and_passes(tmp_path):
     meta = {**json.loads(p.read_text()), "session": "s01-Zürich"}
     write_json(meta, p)
     assert not RS._meta_passes(meta)  # the fast path leaves it to pandera
-    assert validate_group(raw, G)["session"] == "s01-Zürich"
+    assert validate_group(raw, G, limits=LIMITS)["session"] == "s01-Zürich"
 
 
 def test_dropout_and_speed_refusals_name_the_file_and_the_group(tmp_path):
@@ -385,7 +387,7 @@ def test_dropout_and_speed_refusals_name_the_file_and_the_group(tmp_path):
 def test_outcome_labels_are_booleans_and_other_labels_are_free(tmp_path):
     raw = _group(tmp_path)
     _set_label(raw, "operator_note", "re-taped S2")  # neither a time nor an outcome: not checked
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
     for key, value in (("attached", "yes"), ("snap_speed_event", 1), ("retrieved", None)):
         raw = _group(tmp_path / key)
         _set_label(raw, key, value)

@@ -149,7 +149,7 @@ def test_crate_lists_every_result_once_and_fails_when_one_changes(tmp_path):
 def test_a_deployment_with_every_trial_aborted_still_gives_a_ledger_row_per_claim():
     """Under heavy load the real-time trials can all fail the gate: the claims say so, the ledger
     parses them (not measured, or a differing word), and the run goes on to its report."""
-    from embodied_snap.characterize import deployment as D
+    from embodied_snap.deploy import table2 as D
     s = D.summarize(D.pd.DataFrame(), 3, 3, 110.0, 1.0, aborted=3)
     man = {"placements": [{"distance_m": 0.62, "bearing_deg": 0.0}, {"distance_m": 0.69, "bearing_deg": 91.0}]}
     rows = D.claims(s, man)

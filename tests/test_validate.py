@@ -21,6 +21,7 @@ from embodied_snap.resample import resample_group
 from embodied_snap.validate import RecordingError, validate_group, validate_index, validate_shard
 
 from fakerig import write_fake_group, write_fake_raw
+from paper_protocol import LIMITS
 
 G = "dyn_0001"
 GROUPS = (G, "dyn_0002")
@@ -42,8 +43,8 @@ def raw(template, tmp_path):
 
 
 def validate_all(raw):
-    index = validate_index(raw)
-    return validate_shard(raw, list(index.group_id), index)
+    index = validate_index(raw, LIMITS)
+    return validate_shard(raw, list(index.group_id), index, LIMITS)
 
 
 # --- valid groups ----------------------------------------------------------------------------
@@ -64,7 +65,7 @@ def test_valid_groups_pass(raw):
 
 
 def test_validate_group_without_index_row(raw):
-    assert validate_group(raw, G)["group_id"] == G
+    assert validate_group(raw, G, limits=LIMITS)["group_id"] == G
 
 
 def test_fakerig_and_manifest_are_deterministic(raw, tmp_path):
@@ -77,9 +78,9 @@ def test_fakerig_and_manifest_are_deterministic(raw, tmp_path):
 
 
 def test_shard_group_missing_from_index(raw):
-    index = validate_index(raw)
+    index = validate_index(raw, LIMITS)
     with pytest.raises(RecordingError, match=r"group dyn_0042: .*\(rule: every group has an index row\)$"):
-        validate_shard(raw, ["dyn_0042"], index)
+        validate_shard(raw, ["dyn_0042"], index, LIMITS)
 
 
 def test_error_pickles():

@@ -16,7 +16,8 @@ try:
     with tracked(snakemake):
         ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
         v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
-        out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups, ee), v)
+        out = attachment.fit(trials.table(snakemake.params.raw, snakemake.params.groups, ee,
+                         from_params(snakemake.params.protocol).sampling.max_gap_s), v)
         print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
         write_json(out, snakemake.output[0])
 except RecordingError as e:  # a group the gate should have stopped: one line, never a dropped trial

@@ -15,6 +15,7 @@ from embodied_snap.rawformat import write_json
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
-    out = delay.summarize(trials.table(snakemake.params.raw, snakemake.params.groups, ee))
+    out = delay.summarize(trials.table(snakemake.params.raw, snakemake.params.groups, ee,
+                         from_params(snakemake.params.protocol).sampling.max_gap_s))
     print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -9,12 +9,14 @@ import sys
 from embodied_snap.characterize import kinematics as K
 from embodied_snap.characterize import load
 from embodied_snap.lineage.records import tracked
+from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     p = snakemake.params
-    rows = [r for g in p.groups for r in K.burst_rows(*load.group(p.raw, g))]
+    gap = from_params(p.protocol).sampling.max_gap_s  # mocap dropouts bridged
+    rows = [r for g in p.groups for r in K.burst_rows(*load.group(p.raw, g), gap)]
     fit = K.fit_levers(rows, p.quantile)
     fit["travel_per_tick_um"] = K.travel_per_tick_um(rows, fit, p.tendon_radius_m)
     fit["n_bursts"] = len(p.groups)

@@ -16,7 +16,8 @@ from embodied_snap.rawformat import write_json
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
-    rows = trials.table(snakemake.params.raw, snakemake.params.groups, ee)
+    rows = trials.table(snakemake.params.raw, snakemake.params.groups, ee,
+                         from_params(snakemake.params.protocol).sampling.max_gap_s)
     v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
     out = release.summarize(rows, json.load(open(snakemake.input.servo))["ceiling_rad_s"], v)
     print({k: v for k, v in out.items() if k != "speeds"}, file=sys.stderr)

@@ -16,6 +16,7 @@ sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     ee = from_params(snakemake.params.protocol).rig.end_effector_m  # the cup face
     v = from_params(snakemake.params.protocol).thresholds.attach_speed_mps
-    out = snap.fit(trials.table(snakemake.params.raw, snakemake.params.groups, ee), v)
+    out = snap.fit(trials.table(snakemake.params.raw, snakemake.params.groups, ee,
+                         from_params(snakemake.params.protocol).sampling.max_gap_s), v)
     print({k: v for k, v in out.items() if k not in ("trials", "grid")}, file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -1,4 +1,4 @@
-"""Table II (paper VI) from the deployment recordings, through the characterisation code, and the
+"""Table II (paper VI) from the deployment recordings (embodied_snap/deploy/table2.py), and the
 deployment claims beside the paper's values."""
 
 from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
@@ -10,9 +10,10 @@ import sys
 
 import pandas as pd
 
-from embodied_snap.characterize import deployment as D
+from embodied_snap.deploy import table2 as D
 from embodied_snap.lineage.records import tracked
 from embodied_snap.paper import html
+from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -22,7 +23,7 @@ with tracked(snakemake):
     raw = I.groups.rsplit("/groups", 1)[0]
     index = pd.read_csv(I.index)
     aborted = json.load(open(I.aborted))
-    trials = pd.DataFrame([D.trial(raw, g, man) for g in index.group_id],
+    trials = pd.DataFrame([D.trial(raw, g, man, from_params(P.protocol).sampling.max_gap_s) for g in index.group_id],
                           columns=None if len(index) else ["group_id", "placement", "v_peak_mps", "retrieved",
                                                            "attached", "open_loop", "s2_bend_increase_deg"])
     trials.to_csv(O.trials, index=False, lineterminator="\n")

@@ -17,6 +17,7 @@ from embodied_snap.characterize import load  # noqa: E402
 from embodied_snap.figures import deployment as F  # noqa: E402
 from embodied_snap.lineage.records import tracked  # noqa: E402
 from embodied_snap.policy.simulate import for_job  # noqa: E402
+from embodied_snap.protocol import from_params  # noqa: E402
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -32,7 +33,7 @@ with tracked(snakemake):
     for _, pick in order.iterrows():
         mc, _, meta = load.group(raw, pick.group_id)
         try:
-            times = F.moments(mc, meta, P.ee_m)
+            times = F.moments(mc, meta, P.ee_m, from_params(P.protocol).sampling.max_gap_s)
             break
         except ValueError as e:  # e.g. the cup never came closer to the block after the release
             print(f"not drawn: {e}", file=sys.stderr)
@@ -40,7 +41,7 @@ with tracked(snakemake):
         F.empty(snakemake.output.pdf, snakemake.output.png,
                 "no trial with its five moments in order (logs/fig_deployment.log)")
         sys.exit(0)
-    top = F.recorded_frames(mc, meta, times, P.ee_m)
+    top = F.recorded_frames(mc, meta, times, P.ee_m, from_params(P.protocol).sampling.max_gap_s)
     sim, _ = for_job(I, P)
     bottom = F.predicted_frames(sim, meta, times, top[0]["points"], P.ee_m)
     for b, t in zip(bottom, top):

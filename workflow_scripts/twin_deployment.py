@@ -27,7 +27,7 @@ with tracked(snakemake):
                   speed_mps=P.speed_mps)
     with ProcessPoolExecutor(snakemake.threads) as pool:
         results = list(pool.map(job, [p for p, _ in plan], [k for _, k in plan]))
-    rows, aborted = T.gate(raw, results, Limits.from_config(snakemake.config))
+    rows, aborted = T.gate(raw, results, Limits(**P.gate))
     for r in rows:
         print(f"{r['group_id']}: recorded", file=sys.stderr)
     for a in aborted:

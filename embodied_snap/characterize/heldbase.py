@@ -50,7 +50,7 @@ def servo_residual(sv, rate, tau, servos=(1, 2, 3)) -> tuple[np.ndarray, np.ndar
     return t, np.max(res, 0)
 
 
-def trial(mc, sv, meta, servo_fit, thr) -> dict:
+def trial(mc, sv, meta, servo_fit, thr, max_gap_s: float) -> dict:
     t = mc.t.to_numpy()
     lab = meta["labels"]
     ts, res = servo_residual(sv, servo_fit["rate_tick_s"], servo_fit["tau_s"])
@@ -58,8 +58,8 @@ def trial(mc, sv, meta, servo_fit, thr) -> dict:
     t_s1 = lab.get("t_s1", np.nan)
     near = np.abs(ts - t_s1) <= 0.1
     return dict(event=float(lab["base_event_t"]), t0=float(lab.get("t_preload", 0.0)),
-                base=fire_time(t, M.track(mc, "base") * 1e3, thr["base_mm"]),
-                neighbour=fire_time(t, M.track(mc, "s1") * 1e3, thr["neighbour_mm"]),
+                base=fire_time(t, M.track(mc, "base", max_gap_s=max_gap_s) * 1e3, thr["base_mm"]),
+                neighbour=fire_time(t, M.track(mc, "s1", max_gap_s=max_gap_s) * 1e3, thr["neighbour_mm"]),
                 residual=float(ts[np.argmax(fire)]) if fire.any() else float("nan"),
                 residual_trigger_max=float(res[near].max()) if near.any() else float("nan"),
                 residual_quiet_median=float(np.median(res[~near])))

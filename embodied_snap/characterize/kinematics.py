@@ -23,9 +23,9 @@ SETTLE_S = 0.5  # s after the step before the plateau counts as quasi-static
 EDGE_S = 0.02  # s kept clear of each command step (log timing jitter): a fit margin, not a protocol value
 
 
-def burst_rows(mc, sv, meta) -> list[dict]:
+def burst_rows(mc, sv, meta, max_gap_s: float) -> list[dict]:
     """One row per tendon and quasi-static window of a burst: Eq. 1 features, w, current."""
-    th, ph = M.section_bends(mc)
+    th, ph = M.section_bends(mc, max_gap_s)
     t, ts = mc.t.to_numpy(), sv.t.to_numpy()
     lab = meta["labels"]
     rows = []

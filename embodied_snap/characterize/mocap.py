@@ -14,14 +14,14 @@ from .. import rawformat as RF
 from ..quat import qconj, qmul, qrotate
 
 SECTION_FRAMES = (("base", "s1"), ("s1", "s2"), ("s2", "tip"))
-MAX_GAP_S = 0.1  # dropouts up to this long are bridged, as in the 50 Hz resampling
 
 
-def track(mc: pd.DataFrame, body: str, fields=("x", "y", "z")) -> np.ndarray:
-    """One body's columns, invalid samples NaN, short dropouts bridged linearly."""
+def track(mc: pd.DataFrame, body: str, fields=("x", "y", "z"), *, max_gap_s: float) -> np.ndarray:
+    """One body's columns, invalid samples NaN, dropouts up to max_gap_s (the protocol's
+    sampling.max_gap_s, as in the resampling) bridged linearly."""
     x = mc[[f"{body}_{f}" for f in fields]].copy()
     x[~mc[f"{body}_valid"].to_numpy(bool)] = np.nan
-    x = x.interpolate(limit=int(round(MAX_GAP_S * RF.MOCAP_HZ)), limit_area="inside").to_numpy()
+    x = x.interpolate(limit=int(round(max_gap_s * RF.MOCAP_HZ)), limit_area="inside").to_numpy()
     if len(fields) == 4:
         x = x / np.linalg.norm(x, axis=1, keepdims=True)
     return x
@@ -42,8 +42,8 @@ def speed(x: np.ndarray, t: np.ndarray) -> np.ndarray:
     return v
 
 
-def tip_speed(mc: pd.DataFrame) -> np.ndarray:
-    return speed(track(mc, "tip"), mc.t.to_numpy())
+def tip_speed(mc: pd.DataFrame, max_gap_s: float) -> np.ndarray:
+    return speed(track(mc, "tip", max_gap_s=max_gap_s), mc.t.to_numpy())
 
 
 def bend(q_prox: np.ndarray, q_dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,17 +55,17 @@ def bend(q_prox: np.ndarray, q_dist: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return theta, phi
 
 
-def section_bends(mc: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+def section_bends(mc: pd.DataFrame, max_gap_s: float) -> tuple[np.ndarray, np.ndarray]:
     """theta, phi of S1..S3 over time, each (n, 3)."""
-    Q = {b: track(mc, b, ("qw", "qx", "qy", "qz")) for b in ("base", "s1", "s2", "tip")}
+    Q = {b: track(mc, b, ("qw", "qx", "qy", "qz"), max_gap_s=max_gap_s) for b in ("base", "s1", "s2", "tip")}
     th, ph = zip(*(bend(Q[a], Q[b]) for a, b in SECTION_FRAMES))
     return np.stack(th, 1), np.stack(ph, 1)
 
 
-def section_rates(mc: pd.DataFrame) -> np.ndarray:
+def section_rates(mc: pd.DataFrame, max_gap_s: float) -> np.ndarray:
     """Bend rate (rad/s) of S1..S3 over time, (n, 3): the angular speed of each section's
     relative rotation (so a bend that swings through straight still counts), smoothed like speed."""
-    Q = {b: track(mc, b, ("qw", "qx", "qy", "qz")) for b in ("base", "s1", "s2", "tip")}
+    Q = {b: track(mc, b, ("qw", "qx", "qy", "qz"), max_gap_s=max_gap_s) for b in ("base", "s1", "s2", "tip")}
     t = mc.t.to_numpy()
     out = np.full((len(t), 3), np.nan)
     for s, (a, b) in enumerate(SECTION_FRAMES):

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import bearing as BR
+from ..files import sha256
 from ..policy import geometry
 from ..primitive import ANTAGONIST_FACTOR, CABLE_BEARINGS_DEG, section_goals
 from . import controltable as CT
@@ -26,14 +27,6 @@ SERVO_IDS = list(range(1, 10))
 
 class ManifestError(ValueError):
     """The manifest cannot be used: one line naming the file and what is wrong."""
-
-
-def sha256_file(path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def checksum(body: dict) -> str:
@@ -149,7 +142,7 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
                          ceiling_rad_s=servo_fit["ceiling_rad_s"], rated_speed_tick_s=rig["rated_speed_tick_s"]),
         envelope=envelope(workspace["rho_max"], ranges["s3"][1], sch["carry_ticks"], cfg["envelope_margin"]),
         placements=placements(workspace, cfg["distances_m"], cfg["bearing_range_deg"], cfg["n_placements"], box),
-        inputs={k: dict(path=str(p), sha256=sha256_file(p)) for k, p in sorted(inputs.items())},
+        inputs={k: dict(path=str(p), sha256=sha256(p)) for k, p in sorted(inputs.items())},
         lineage=lineage,
     )
     man["checksum"] = checksum(man)
@@ -163,6 +156,6 @@ def inputs_changed(man: dict, root=".") -> list[str]:
         p = Path(root) / e["path"]
         if not p.exists():
             out.append(f"{e['path']} ({k}) is gone since the manifest was exported")
-        elif sha256_file(p) != e["sha256"]:
+        elif sha256(p) != e["sha256"]:
             out.append(f"{e['path']} ({k}) changed after the manifest was exported")
     return out

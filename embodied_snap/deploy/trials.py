@@ -26,7 +26,7 @@ def gate(raw, trials: list[dict], limits: Limits) -> tuple[list[dict], list[dict
             aborted.append(r)
             continue
         try:
-            validate_group(raw, r["group_id"], r, limits)  # with the labels Table II reads (gate.labels)
+            validate_group(raw, r["group_id"], r, limits=limits)  # with the labels Table II reads (gate.labels)
         except RecordingError as e:  # kept out of the index with its reason, like an aborted trial
             aborted.append(dict(group_id=r["group_id"], cause=f"rejected by the gate: {e}"))
             continue

@@ -9,12 +9,12 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
+from ..policy.architectures import TABLE
 from . import style
 
-NAMES = {"shared": "Shared", "centralised": "Centralised", "centralised16": "Centralised-16",
-         "unshared": "Unshared", "fixed": "Fixed primitive"}
-COLORS = {"shared": style.PALETTE[0], "centralised": style.PALETTE[1], "centralised16": style.PALETTE[2],
-          "unshared": style.PALETTE[3], "fixed": style.PALETTE[7]}
+# Labels and colours: the architectures' table (policy/architectures.py), and the fixed primitive's.
+NAMES = {a.name: a.label for a in TABLE} | {"fixed": "Fixed primitive"}
+COLORS = {a.name: style.PALETTE[a.colour] for a in TABLE} | {"fixed": style.PALETTE[7]}
 SCALE = 1e4  # evaluations axis in units of 10^4
 
 

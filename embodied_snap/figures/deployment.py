@@ -155,7 +155,7 @@ def plot(top: list[np.ndarray], bottom: list[np.ndarray], titles: list[str], cap
 MOMENTS = ("hanging", "preload", "snap", "reach", "attachment")
 
 
-def moments(mc, meta: dict, ee_m: float) -> dict:
+def moments(mc, meta: dict, ee_m: float, max_gap_s: float) -> dict:
     """Times (s) of the five moments in a recorded trial, in this order: hanging (halfway to the
     preload), preload (its end: S3 slackened, the fold latched), reach (the cup's closest approach
     to the block after the S1 release, up to the observed seal), snap (mid-strike: the cup first
@@ -163,8 +163,9 @@ def moments(mc, meta: dict, ee_m: float) -> dict:
     held on the cup: the carry's start, else 0.3 s after the seal; without a seal 0.3 s after the
     reach). Raises ValueError when they are not in that order."""
     lab, t = meta["labels"], mc.t.to_numpy()
-    cup = cup_from_pose(M.track(mc, "tip"), M.track(mc, "tip", ("qw", "qx", "qy", "qz")), ee_m)
-    d = np.linalg.norm(cup - M.track(mc, "target"), axis=1)
+    cup = cup_from_pose(M.track(mc, "tip", max_gap_s=max_gap_s),
+                        M.track(mc, "tip", ("qw", "qx", "qy", "qz"), max_gap_s=max_gap_s), ee_m)
+    d = np.linalg.norm(cup - M.track(mc, "target", max_gap_s=max_gap_s), axis=1)
     t_att = lab.get("t_attach")
     after = t >= lab["t_s1"]
     d_after = np.where(after & (t <= (t_att if t_att is not None else lab["t_s1"] + 1.0)), d, np.nan)
@@ -183,11 +184,11 @@ def moments(mc, meta: dict, ee_m: float) -> dict:
     return out
 
 
-def recorded_frames(mc, meta: dict, times: dict, ee_m: float) -> list[dict]:
+def recorded_frames(mc, meta: dict, times: dict, ee_m: float, max_gap_s: float) -> list[dict]:
     t = mc.t.to_numpy()
-    P = {b: M.track(mc, b) for b in ("base", "s1", "s2", "tip", "target")}
-    qt = M.track(mc, "tip", ("qw", "qx", "qy", "qz"))
-    qb = M.track(mc, "target", ("qw", "qx", "qy", "qz"))
+    P = {b: M.track(mc, b, max_gap_s=max_gap_s) for b in ("base", "s1", "s2", "tip", "target")}
+    qt = M.track(mc, "tip", ("qw", "qx", "qy", "qz"), max_gap_s=max_gap_s)
+    qb = M.track(mc, "target", ("qw", "qx", "qy", "qz"), max_gap_s=max_gap_s)
     half = np.asarray(meta["target"]["size_m"]) / 2
     out = []
     for k in MOMENTS:

@@ -34,8 +34,9 @@ def _commands(row: pd.Series) -> dict:
 
 
 def plot_system(render_png, mocap: pd.DataFrame, servo: pd.DataFrame, meta: dict, selected: dict,
-                ev: pd.DataFrame, pdf, png) -> dict:
-    """Draw Fig. 1; returns what it shows (the group, the target and its commands)."""
+                ev: pd.DataFrame, pdf, png, *, max_gap_s: float) -> dict:
+    """Draw Fig. 1 (mocap dropouts up to max_gap_s bridged); returns what it shows (the group, the
+    target and its commands)."""
     setup()
     fig = plt.figure(figsize=(TEXT_WIDTH_IN, 3.2))
     gs = fig.add_gridspec(2, 3, width_ratios=[0.7, 1.5, 1.3], hspace=0.18, wspace=0.3,
@@ -70,7 +71,7 @@ def plot_system(render_png, mocap: pd.DataFrame, servo: pd.DataFrame, meta: dict
     ax1.set_title(f"(b) primitive, recorded strike {meta['group_id']}", loc="left")
     ax1.tick_params(labelbottom=False)
     m = mocap[(mocap.t >= t0 - 0.3) & (mocap.t <= t1)]
-    theta, _ = section_bends(m)
+    theta, _ = section_bends(m, max_gap_s)
     ax2 = fig.add_subplot(gs[1, 1], sharex=ax1)
     for i in range(3):
         ax2.plot(m.t - t0, np.rad2deg(theta[:, i]), color=PALETTE[i], lw=1, label=f"S{i + 1}")

@@ -20,9 +20,10 @@ import time
 from collections import deque
 from pathlib import Path
 
+from ..files import sha256
 from .groups import group_of, load_groups
 from .policy import GATES, label
-from .records import last_config, load_records, raw_dir_of, sha256
+from .records import last_config, load_records, raw_dir_of
 
 
 def _norm(result: str, root: Path) -> str:

@@ -9,8 +9,9 @@ inputs, so editing a module reruns exactly the jobs whose scripts reach it; at r
 A script that builds the Snakemake DAG (through lineage/dag.py) also runs the workflow
 definition, so the modules that the Snakefile and rules/*.smk import count for it too.
 
-The provenance writer itself (`records` and the packages that hold it) is left out: it changes
-the records, never a result, and declaring it would rerun every job whenever it is edited.
+The provenance writer itself (`records`, the packages that hold it, and `files`, the atomic write
+and file sha256 it writes records with) is left out: it changes the records, never a result, and
+declaring it would rerun every job whenever it is edited.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from pathlib import Path
 
 PACKAGE = "embodied_snap"
 # Loaded by every job for its own bookkeeping; never declared (see above).
-EXEMPT = frozenset({PACKAGE, f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"})
+EXEMPT = frozenset({PACKAGE, f"{PACKAGE}.files", f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"})
 DAG_MODULE = f"{PACKAGE}.lineage.dag"
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 from prov.model import ProvDocument
 
+from ..files import write_text
 from .groups import group_of, load_groups
 from .policy import held_out
 from .records import last_config, load_records, raw_dir_of
@@ -96,9 +97,4 @@ def build(root=".", raw: str | None = None) -> ProvDocument:
 
 
 def export(root=".", out="results/lineage/prov.json", raw: str | None = None) -> Path:
-    out = Path(root) / out
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text(build(root, raw).serialize(format="json", indent=1))
-    os.replace(tmp, out)
-    return out
+    return write_text(Path(root) / out, build(root, raw).serialize(format="json", indent=1))

@@ -17,7 +17,8 @@ module's import is seen and checked like one inside `tracked()`.
 
 Records are not Snakemake outputs: they describe jobs, they are not data. `esnap audit`,
 `esnap check-separation` and the PROV export read only these records (and the files on disk).
-This module uses the standard library alone and is not a declared code input of any rule
+This module uses the standard library alone (and embodied_snap.files, the package's one atomic write
+and file sha256, standard library too) and is not a declared code input of any rule
 (lineage/imports.py): it changes records, never a result.
 """
 
@@ -31,10 +32,11 @@ import re
 import socket
 import subprocess
 import sys
-import tempfile
 from contextlib import contextmanager
 from importlib import metadata
 from pathlib import Path
+
+from ..files import sha256, write_text
 
 RECORDS_DIR = "results/provenance"
 CONFIG_DIR = f"{RECORDS_DIR}/config"  # the config each run used, by sha256 (records name theirs)
@@ -45,7 +47,7 @@ PACKAGES = (
 )
 PACKAGE = "embodied_snap"
 # Loaded by every job for the bookkeeping itself; never declared (lineage/imports.py).
-EXEMPT_MODULES = frozenset({PACKAGE, f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"})
+EXEMPT_MODULES = frozenset({PACKAGE, f"{PACKAGE}.files", f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"})
 # Folders under the root whose reads are neither data nor checked: logs and benchmarks the job
 # writes, code (declared and checked as modules), and hidden folders (.snakemake, .venv, .git).
 _NOT_DATA = ("logs/", "benchmarks/", f"{PACKAGE}/", "workflow_scripts/")
@@ -68,14 +70,6 @@ def raw_dir_of(config: dict | None) -> str:
 def is_code(path: str) -> bool:
     """Package modules and workflow scripts are code inputs, recorded apart from data."""
     return path.startswith("embodied_snap/") or path.startswith("workflow_scripts/")
-
-
-def sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _rel(path: str | Path, root: Path) -> str:
@@ -175,26 +169,8 @@ def write_config(config: dict, root=".") -> str:
     sha = hashlib.sha256(text.encode()).hexdigest()
     path = Path(root) / CONFIG_DIR / f"{sha}.json"
     if not path.exists():
-        _atomic_text(path, text)
+        write_text(path, text)  # atomic: several nodes may store the same config at once
     return sha
-
-
-def _atomic_text(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            # On a shared file system (NFS, Lustre) another node must never see the new name
-            # before its bytes: flush them to the server first.
-            f.flush()
-            os.fsync(f.fileno())
-        # atomic, also when jobs on several nodes write at once: a reader sees the old file or
-        # the new, never half (the temporary name is unique per writer, in the same folder)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def write_record(rule, wildcards, inputs, outputs, params, started, root=".", *, log=(),
@@ -223,7 +199,8 @@ def write_record(rule, wildcards, inputs, outputs, params, started, root=".", *,
         host=socket.gethostname(),
     )
     path = record_path(rule, wildcards, root)
-    _atomic_text(path, json.dumps(rec, indent=1) + "\n")
+    # atomic, also when jobs on several nodes write the same record at once (embodied_snap.files)
+    write_text(path, json.dumps(rec, indent=1) + "\n")
     return path
 
 

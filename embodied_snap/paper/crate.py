@@ -19,7 +19,8 @@ import os
 from pathlib import Path
 from urllib.parse import unquote
 
-from ..lineage.records import AFTER_RUN, CONFIG_DIR, RECORDS_DIR, load_records, record_path, sha256
+from ..files import sha256
+from ..lineage.records import AFTER_RUN, CONFIG_DIR, RECORDS_DIR, load_records, record_path
 
 PROFILES = {
     "https://w3id.org/ro/wfrun/process/0.5": "Process Run Crate",

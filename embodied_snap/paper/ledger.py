@@ -14,6 +14,8 @@ import math
 import re
 from pathlib import Path
 
+import pandas as pd
+
 from ..lineage.audit import audit
 from ..lineage.records import load_records
 from ..reference import tolerance
@@ -168,18 +170,16 @@ def markdown(rows: list[dict]) -> str:
     by: dict[str, list[dict]] = {}
     for r in rows:
         by.setdefault(r["section"], []).append(r)
+    link = lambda r: f"[{r['explained_in']}](../../{r['explained_in']})" if r["explained_in"] else ""  # noqa: E731
     for sec in sorted(by, key=section_key):
         rs = by[sec]
         c = counts(rs)
         out += [f"## {sec}", "", f"{c['paper_numbers']} paper numbers, {c['agree']} within tolerance, "
-                f"{c['differ']} differ", "",
-                "| claim | quantity | paper | ours | unit | status | explained in | fed by |",
-                "| --- | --- | --- | --- | --- | --- | --- | --- |"]
-        for r in rs:
-            doc = f"[{r['explained_in']}](../../{r['explained_in']})" if r["explained_in"] else ""
-            out.append(f"| {r['claim_id']} | {r['quantity']} | {r['paper']} | {r['ours']} | {r['unit']} | "
-                       f"{r['status']} | {doc} | {r['fed_by']} |")
-        out.append("")
+                f"{c['differ']} differ", ""]
+        t = pd.DataFrame([[str(v) for v in (r["claim_id"], r["quantity"], r["paper"], r["ours"], r["unit"],
+                                            r["status"], link(r), r["fed_by"])] for r in rs],
+                         columns=["claim", "quantity", "paper", "ours", "unit", "status", "explained in", "fed by"])
+        out += [t.to_markdown(index=False, tablefmt="github", disable_numparse=True), ""]
     return "\n".join(out)
 
 

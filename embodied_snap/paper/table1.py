@@ -13,6 +13,8 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
+import pandas as pd
+
 from ..lineage import policy as P
 from ..lineage.groups import deployment_dir, load_groups
 from . import html
@@ -97,22 +99,13 @@ def write(rows_: list[dict], base) -> list[Path]:
         w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
         w.writeheader()
         w.writerows(rows_)
-    md = ["| " + " | ".join(c.capitalize() for c in COLUMNS) + " |", "|" + " --- |" * len(COLUMNS)]
-    md += ["| " + " | ".join(str(r[c]).replace("|", "/") for c in COLUMNS) + " |" for r in rows_]
-    base.with_suffix(".md").write_text("\n".join(md) + "\n")
-
-    def tex(s):
-        s = str(s)
-        for a, b in (("\\", r"\textbackslash{}"), ("_", r"\_"), ("%", r"\%"), ("&", r"\&"), ("#", r"\#")):
-            s = s.replace(a, b)
-        return s
-
+    df = pd.DataFrame([[str(r[c]) for c in COLUMNS] for r in rows_], columns=list(COLUMNS))
+    md = df.map(lambda s: s.replace("|", "/")).rename(columns=str.capitalize)  # a | would split the cell
+    base.with_suffix(".md").write_text(md.to_markdown(index=False, tablefmt="github", disable_numparse=True) + "\n")
+    head = dict(zip(COLUMNS, ("Evidence", "Domain", "$n$", "Use", "Separation", "Verdict")))
+    tex = df.rename(columns=head).style.hide(axis="index").format(escape="latex")
     cols = r"@{}p{0.13\textwidth}p{0.07\textwidth}rp{0.25\textwidth}p{0.3\textwidth}p{0.12\textwidth}@{}"
-    lines = [r"\begin{tabular}{" + cols + "}",
-             r"\toprule", "Evidence & Domain & $n$ & Use & Separation & Verdict \\\\", r"\midrule"]
-    lines += [" & ".join(tex(r[c]) for c in COLUMNS) + " \\\\" for r in rows_]
-    lines += [r"\bottomrule", r"\end{tabular}"]
-    base.with_suffix(".tex").write_text("\n".join(lines) + "\n")
+    base.with_suffix(".tex").write_text(tex.to_latex(column_format=cols, hrules=True))
     proved = sum(r["verdict"].startswith("proved") for r in rows_)
     base.with_suffix(".html").write_text(html.table(
         "Table I: evidence sets and their separation",

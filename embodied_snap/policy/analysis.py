@@ -16,9 +16,10 @@ import numpy as np
 import pandas as pd
 from scipy.stats import mannwhitneyu
 
+from .architectures import NAMES
 from .reward import attached
 
-ARCHS = ("shared", "centralised", "centralised16", "unshared")  # plotting and table order
+ARCHS = NAMES  # plotting and table order: the architectures' table (architectures.py)
 MATCHED = "centralised"  # the parameter-matched baseline (158 weights) that sets the reward level
 REPORT_TOL_M = 0.05  # the paper's reporting tolerance (V-A): a protocol choice, not a result
 AT_BOUND_S = 0.001  # "at a timing bound": within 1 ms of either end of T

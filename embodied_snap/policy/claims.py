@@ -5,6 +5,7 @@ The paper column comes from reference/paper_values.yaml (section `policy`), neve
 from __future__ import annotations
 
 from ..reference import claim_rows
+from .architectures import NAMES
 
 
 def _get(d, *keys):
@@ -47,7 +48,7 @@ def _ours(s: dict) -> dict:
     for k in ("rho3_height", "rho3_distance", "rho2_distance", "dphi_height", "tau_distance", "rho3_radius",
               "rho2_radius", "tau_radius", "targets_distance_height"):
         out[f"corr_{k}"] = _get(s, "selected", "correlations", k)
-    for a in ("shared", "centralised", "centralised16", "unshared"):
+    for a in NAMES:
         out[f"n_params_{a}"] = _get(s, "n_params", a)
         out[f"seeds_{a}"] = _get(s, "reward", a, "n")
         out[f"reward_{a}_mean"] = _get(s, "reward", a, "mean")

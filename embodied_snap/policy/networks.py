@@ -1,4 +1,5 @@
-"""The four policy architectures of paper IV-B/IV-C as functions of a flat parameter vector theta.
+"""The policy architectures of paper IV-B/IV-C (their table: architectures.py) as functions of a flat
+parameter vector theta.
 
 Every architecture returns the same six dimensionless outputs u in [-1, 1] per target, in the order
 ACTIONS = (rho1, dphi, tau, rho2, rho3, s3).
@@ -12,19 +13,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .architectures import BY_NAME, SECTION_OUTPUTS, TABLE
+
 ACTIONS = ("rho1", "dphi", "tau", "rho2", "rho3", "s3")
 
 
-def mlp_sizes(n_in: int, width: int, n_out: int) -> list[tuple[int, int]]:
-    return [(width, n_in), (width, width), (n_out, width)]
-
-
-ARCHS = {
-    "shared": [mlp_sizes(6, 8, 3)],
-    "centralised": [mlp_sizes(3, 8, 6)],
-    "centralised16": [mlp_sizes(3, 16, 6)],
-    "unshared": [mlp_sizes(3, 8, 3), mlp_sizes(3, 8, 1), mlp_sizes(3, 8, 2)],
-}
+# Layer sizes of each architecture's networks, from the architectures' table (architectures.py).
+ARCHS = {a.name: a.nets for a in TABLE}
 
 
 def n_params(arch: str) -> int:
@@ -54,11 +49,12 @@ def _forward(layers, x: np.ndarray) -> np.ndarray:
 def outputs(arch: str, theta: np.ndarray, g: np.ndarray) -> np.ndarray:
     """u (N, 6) in ACTIONS order for normalised target features g (N, 3)."""
     nets = _unpack(np.asarray(theta, float), arch)
-    if arch == "shared":
+    sharing = BY_NAME[arch].sharing
+    if sharing == "section_code":
         eye = np.eye(3)
         u = [_forward(nets[0], np.concatenate([g, np.broadcast_to(eye[i], (len(g), 3))], 1)) for i in range(3)]
-        return np.stack([u[0][:, 0], u[0][:, 1], u[0][:, 2], u[1][:, 0], u[2][:, 0], u[2][:, 1]], 1)
-    if arch == "unshared":
-        u1, u2, u3 = (_forward(net, g) for net in nets)
-        return np.concatenate([u1, u2, u3], 1)
+        return np.concatenate([u[i][:, :k] for i, k in enumerate(SECTION_OUTPUTS)], 1)
+    if sharing == "per_section":
+        return np.concatenate([_forward(net, g) for net in nets], 1)
+    assert sharing == "joint", f"{arch}: unknown sharing {sharing!r}"
     return _forward(nets[0], g)

@@ -20,6 +20,7 @@ from tqdm import tqdm
 from .. import bearing as BR
 from . import geometry, networks
 from .actions import decode
+from .evaluations import evaluations
 
 OUTCOME = ("lateral_m", "gap_m", "miss_m", "v_pk_mps", "t_pk_s", "t_ca_s", "reward", "c_h", "p_snap",
            "disagreement_m")
@@ -84,7 +85,7 @@ def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select:
         es = pickle.loads(resume["state"])
         curve, snaps = [dict(c) for c in resume["curve"]], dict(resume.get("snapshots", {}))
         best = (resume["selection_reward"], np.asarray(resume["theta"]), resume["selected_generation"])
-    per_gen = popsize * int((gen_of == gen_of.min()).sum())
+    per_gen = evaluations(1, popsize, int((gen_of == gen_of.min()).sum()))
     held_job = lambda: (policy_actions(arch, es.mean, select, norm, ranges), select)  # noqa: E731
 
     def log_held(held, mean):

@@ -29,7 +29,7 @@ LEAD_S = 0.05
 
 
 def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> dict:
-    """The issue's table, from the recordings (proto: its rig, primitive and thresholds sections)."""
+    """The issue's table, from the recordings (proto: its sampling, rig, primitive and thresholds sections)."""
     ceiling = tuple(proto.rig.rated_speed_tick_s / x for x in PAPER_LEVER)  # rad/s, S1..S3
     timing, v_attach = proto.primitive.timing_s, proto.thresholds.attach_speed_mps
     g = pd.DataFrame(groups)
@@ -41,7 +41,7 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> d
         meta = RF.read_meta(p["meta"])
         mc = read_parquet(p["mocap"])
         t, t0 = mc.t.to_numpy(), release_start(meta) - LEAD_S
-        v, _ = peak(tip_speed(mc), t, t0)
+        v, _ = peak(tip_speed(mc, proto.sampling.max_gap_s), t, t0)
         rec = dict(
             group_id=row.group_id,
             es=row.evidence_set,
@@ -51,7 +51,7 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> d
             attached=meta["labels"].get("attached"),
         )
         if row.evidence_set == "delay_sweep":
-            rec["rates"] = [peak(w, t, t0)[0] for w in section_rates(mc).T]
+            rec["rates"] = [peak(w, t, t0)[0] for w in section_rates(mc, proto.sampling.max_gap_s).T]
         rows.append(rec)
     d = pd.DataFrame(rows)
     out: dict = {}

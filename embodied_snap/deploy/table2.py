@@ -1,10 +1,12 @@
-"""Table II (paper VI): the deployment trials read by the characterisation code.
+"""Table II (paper VI): the deployment trials, read with the characterisation code's loaders and
+motion-capture features (deployment imports characterisation, never the other way).
 
 Per trial, from its recordings: the S2 bend increase over the preload (mocap frames, mocap.py),
 the peak tip speed after the release began (trials.features), the observed labels (attached,
 retrieved), and whether every goal the servos got is the goal the manifest gives for the trial's
 target (the open-loop property: nothing read back changed a command). A trial recorded under
-another manifest stops the table with one line.
+another manifest stops the table with one line. Run by the workflow (pandas): not loaded by
+`esnap deploy` on the lab PC.
 """
 
 from __future__ import annotations
@@ -12,17 +14,17 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..deploy import commands as C
+from ..characterize import load, trials
+from ..characterize import mocap as M
 from ..reference import claim_rows, fmt, paper_column
-from . import load, trials
-from . import mocap as M
+from . import commands as C
 
 
 class DeploymentError(ValueError):
     pass
 
 
-def trial(raw, gid: str, man: dict) -> dict:
+def trial(raw, gid: str, man: dict, max_gap_s: float) -> dict:
     mc, sv, meta = load.group(raw, gid)
     if meta.get("manifest_sha256") != man["checksum"]:
         raise DeploymentError(f"{raw}/groups/{gid}/meta.json: group {gid}: recorded under manifest "
@@ -30,10 +32,10 @@ def trial(raw, gid: str, man: dict) -> dict:
                               "(rule: deployment trials run the exported manifest)")
     lab, prog = meta["labels"], meta["program"]
     t = mc.t.to_numpy()
-    th, _ = M.section_bends(mc)
+    th, _ = M.section_bends(mc, max_gap_s)
     hang = np.nanmedian(th[t < lab["t_preload"], 1])
     pre = np.nanmax(th[(t >= lab["t_preload"]) & (t <= lab["t_slack"]), 1])
-    f = trials.features(mc, meta, man["primitive"]["end_effector_m"])  # the exported arm's end effector
+    f = trials.features(mc, meta, man["primitive"]["end_effector_m"], max_gap_s)  # the exported arm's end effector
     plan = C.plan(man, prog["target_m"])
     logged = sv[[f"goal_{i}" for i in range(1, 10)]].to_numpy()
     open_loop = logged.shape == plan["goals"].shape and bool(np.array_equal(logged, plan["goals"]))
@@ -90,15 +92,15 @@ def table2(s: dict, bend_deg: float, fast_mps: float, path=None) -> pd.DataFrame
 
 
 def markdown(df: pd.DataFrame) -> str:
-    head = "| " + " | ".join(df.columns) + " |\n|" + "---|" * len(df.columns) + "\n"
-    return head + "".join("| " + " | ".join(str(v) for v in r) + " |\n" for r in df.itertuples(index=False))
+    """results/tables/table2_deployment.md (pandas' writer; every cell as its text, no number parsing)."""
+    return df.map(str).to_markdown(index=False, tablefmt="github", disable_numparse=True) + "\n"
 
 
 def latex(df: pd.DataFrame) -> str:
-    esc = lambda s: str(s).replace(">=", r"$\geq$").replace("%", r"\%").replace("_", r"\_")  # noqa: E731
-    body = "".join(" & ".join(esc(v) for v in r) + r" \\" + "\n" for r in df.itertuples(index=False))
-    return (r"\begin{tabular}{@{}llll@{}}" + "\n" + r"\toprule" + "\nEvidence & Criterion & Result & Paper \\\\\n"
-            + r"\midrule" + "\n" + body + r"\bottomrule" + "\n" + r"\end{tabular}" + "\n")
+    """results/tables/table2_deployment.tex: cells escaped for LaTeX, `>=` set as $\\geq$."""
+    st = df.map(str).rename(columns=str.capitalize).style.hide(axis="index")
+    st = st.format(lambda s: s.replace(">=", r"$\geq$"), escape="latex")
+    return st.to_latex(column_format="@{}llll@{}", hrules=True)
 
 
 def claims(s: dict, man: dict, path=None) -> list[dict]:
