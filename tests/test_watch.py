@@ -172,13 +172,22 @@ def test_every_workflow_script_starts_with_the_watch():
 def test_the_watch_is_standard_library_only_and_exempt():
     from embodied_snap.lineage.imports import EXEMPT
 
-    mods = set()
-    for node in ast.walk(ast.parse((REPO / "embodied_snap/lineage/records.py").read_text())):
-        if isinstance(node, ast.Import):
-            mods |= {a.name.split(".")[0] for a in node.names}
-        elif isinstance(node, ast.ImportFrom):
-            mods.add("." if node.level else node.module.split(".")[0])
+    def imported(path):
+        mods, rel = set(), set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Import):
+                mods |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom):
+                (rel if node.level else mods).add(node.module.split(".")[0] if node.module else ".")
+        return mods, rel
+
+    mods, rel = imported(REPO / "embodied_snap/lineage/records.py")
     assert mods <= set(sys.stdlib_module_names) | {"__future__"}
+    # within the package, only the file helpers (one atomic write, one sha256), themselves stdlib only
+    assert rel == {"files"}
+    mods, rel = imported(REPO / "embodied_snap/files.py")
+    assert mods <= set(sys.stdlib_module_names) | {"__future__"} and not rel
+    assert "embodied_snap.files" in EXEMPT
     # the watch line loads records (and the two code-free packages above it), never a code input
     assert pv.WATCH_IMPORT == f"from {pv.__name__.rpartition('.')[0]} import records"
     assert pv.__name__ in EXEMPT & pv.EXEMPT_MODULES
