@@ -392,3 +392,37 @@ def test_outcome_labels_are_booleans_and_other_labels_are_free(tmp_path):
         raw = _group(tmp_path / key)
         _set_label(raw, key, value)
         _refusal(raw, "meta", f"label {key}={value!r} is not true/false", "outcome labels are booleans")
+
+
+# --- a refusal names its rule and says what failed (the schema's checks, called directly) -----------
+
+
+def _failed_check(checks, df):
+    with pytest.raises(pa.errors.SchemaError) as e:
+        pa.DataFrameSchema(checks=checks).validate(df)
+    return e.value.check.name, e.value.check.error
+
+
+def test_the_body_checks_name_their_rule_and_what_failed():
+    """The rule names are docs/data.md's ("valid <body> samples complete", "unit <body> quaternions");
+    the refusal line prints the name as its rule and the error as what failed."""
+    cols = [f"s2_{f}" for f in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+    ok = pd.DataFrame([[0.1, -0.5, 0.2, 1.0, 0.0, 0.0, 0.0, True]] * 2, columns=cols + ["s2_valid"])
+    nan = ok.copy()
+    nan.loc[1, "s2_z"] = np.nan
+    assert _failed_check(RS._body_checks("s2"), nan) == (
+        "valid s2 samples complete", "s2 marked valid but its pose has NaN/inf")
+    twice = ok.copy()
+    twice.loc[1, "s2_qw"] = 2.0
+    assert _failed_check(RS._body_checks("s2"), twice) == (
+        "unit s2 quaternions", f"s2 quaternion norm differs from 1 by more than {RS.QUAT_NORM_TOL:g}")
+
+
+def test_the_rate_check_names_its_rule_and_the_rate():
+    slow = pd.DataFrame({"t": np.arange(8) / 200.0})
+    assert _failed_check([RS._rate_check(240.0, 0.1, "mocap at 240 Hz")], slow) == (
+        "mocap at 240 Hz", "median sample interval is not 1/240 s (+-10%)")
+
+
+def test_two_samples_at_the_rate_have_a_rate():
+    assert _passes([RS._rate_check(240.0, 0.1, "r")], pd.DataFrame({"t": [0.0, 1 / 240]}))
