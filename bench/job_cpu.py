@@ -4,8 +4,9 @@
 
 A stage is the first folder under BENCHMARKS_DIR (a file directly in it is its own stage). Prints,
 per stage: jobs, CPU-s in all (Snakemake's `cpu_time`: user + system of the job's processes), CPU-s
-per job (mean and median), wall seconds per job and the mean load Snakemake saw. Used to put the
-lineage watch's cost (docs/benchmarks.md, "The watch from the start") beside a job's whole cost.
+per job (mean and median), wall seconds per job and the job's mean CPU use in % of one core
+(Snakemake's `mean_load`). Used to put the lineage watch's cost (docs/benchmarks.md, "The watch
+from the start") beside a job's whole cost.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ def table(bench: Path) -> pd.DataFrame:
         "cpu_s_per_job": g.cpu_s.mean().round(2),
         "median": g.cpu_s.median().round(2),
         "wall_s_per_job": g.wall_s.mean().round(1),
-        "mean_load": g.load.mean().round(0),
+        "cpu_pct": g.load.mean().round(0),
     })
 
 

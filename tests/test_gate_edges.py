@@ -426,3 +426,35 @@ def test_the_rate_check_names_its_rule_and_the_rate():
 
 def test_two_samples_at_the_rate_have_a_rate():
     assert _passes([RS._rate_check(240.0, 0.1, "r")], pd.DataFrame({"t": [0.0, 1 / 240]}))
+
+
+def _servo_times(raw, first, last):
+    """The servo log cut to [first, last] s, its first and last sample moved onto those times."""
+    def cut(s):
+        s = s[(s.t >= first - 0.01) & (s.t <= last + 0.01)].copy()
+        s.iloc[0, s.columns.get_loc("t")], s.iloc[-1, s.columns.get_loc("t")] = first, last
+        return s
+    _edit_servo(raw, cut)
+
+
+def test_the_servo_cover_counts_from_the_first_and_last_mocap_sample(tmp_path):
+    """The log must start by 50 ms after the mocap's first sample and end by 50 ms before its last
+    (rawschema COVER_TOL_S): 52 ms is refused though it lies within 50 ms of the second sample
+    (12.5 + 1/240 s) or of the second-last one."""
+    raw = _group(tmp_path / "start")
+    _servo_times(raw, T0 + 0.052, T_END)
+    _refusal(raw, "servo", f"servo log spans {T0 + 0.052:.3f}..{T_END:.3f} s, mocap {T0:.3f}..{T_END:.3f} s",
+             "servo log covers mocap")
+    raw = _group(tmp_path / "end")
+    _servo_times(raw, T0, T_END - 0.052)
+    _refusal(raw, "servo", f"servo log spans {T0:.3f}..{T_END - 0.052:.3f} s, mocap {T0:.3f}..{T_END:.3f} s",
+             "servo log covers mocap")
+
+
+def test_the_servo_gap_refusal_names_the_file_the_group_and_the_rule(tmp_path):
+    raw = _group(tmp_path)
+    s = pd.read_parquet(group_paths(raw, G)["servo"])
+    keep = (s.t <= T0 + 1.0) | (s.t >= T0 + 1.07)
+    a, b = float(s.t[keep & (s.t <= T0 + 1.0)].max()), float(s.t[keep & (s.t >= T0 + 1.07)].min())
+    _edit_servo(raw, lambda s: s[keep])
+    _refusal(raw, "servo", f"no sync-read for {b - a:.3f} s from t={a:.3f} to t={b:.3f} s", "servo log gap <= 0.05 s")
