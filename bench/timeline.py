@@ -29,7 +29,8 @@ def stages(root: Path = ROOT) -> dict[str, str]:
     """rule -> the rules/<stage>.smk defining it (the Snakefile's own rules: 'Snakefile')."""
     out = {}
     for f in [root / "Snakefile", *sorted((root / "rules").glob("*.smk"))]:
-        for m in re.finditer(r"^\s*(?:rule|checkpoint) (\w+):", f.read_text(), re.M):
+        # `rule X:`, `checkpoint X:`, and a reuse `use rule Y as X with:` (rules/robustness.smk)
+        for m in re.finditer(r"^\s*(?:rule|checkpoint|use rule \w+ as) (\w+)(?::| with:)", f.read_text(), re.M):
             out[m.group(1)] = f.stem
     return out
 
