@@ -458,3 +458,24 @@ def test_the_servo_gap_refusal_names_the_file_the_group_and_the_rule(tmp_path):
     a, b = float(s.t[keep & (s.t <= T0 + 1.0)].max()), float(s.t[keep & (s.t >= T0 + 1.07)].min())
     _edit_servo(raw, lambda s: s[keep])
     _refusal(raw, "servo", f"no sync-read for {b - a:.3f} s from t={a:.3f} to t={b:.3f} s", "servo log gap <= 0.05 s")
+
+
+def test_more_meta_refusals_name_the_file_the_group_and_the_rule(tmp_path):
+    """The label-time and format-version refusals, whole; the rule texts are docs/data.md's."""
+    raw = _group(tmp_path / "a")
+    _set_label(raw, "t_s1", T_END + 0.001)
+    _refusal(raw, "meta", "label t_s1=15.501 is not a time in 12.500..15.500 s", "label times inside the recording")
+    raw = _group(tmp_path / "b")
+    p = group_paths(raw, G)["meta"]
+    write_json({**json.loads(p.read_text()), "format_version": 2}, p)
+    _refusal(raw, "meta", "format_version 2; this pipeline reads 1", "format version 1")
+
+
+def test_a_category_entry_overrides_its_sets_labels(tmp_path):
+    """config gate.labels: dynamics/target needs `attached`, which plain dynamics does not."""
+    assert "attached" in CONFIG["gate"]["labels"]["dynamics/target"]
+    assert "attached" not in CONFIG["gate"]["labels"]["dynamics"]
+    raw = _group(tmp_path, category="target")
+    _set_label(raw, "attached", None)
+    _refusal(raw, "meta", "labels has no 'attached' (dynamics/target needs "
+             + ", ".join(CONFIG["gate"]["labels"]["dynamics/target"]) + ")", "labels complete per evidence set")
