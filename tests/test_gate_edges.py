@@ -479,3 +479,11 @@ def test_a_category_entry_overrides_its_sets_labels(tmp_path):
     _set_label(raw, "attached", None)
     _refusal(raw, "meta", "labels has no 'attached' (dynamics/target needs "
              + ", ".join(CONFIG["gate"]["labels"]["dynamics/target"]) + ")", "labels complete per evidence set")
+
+
+def test_positions_of_bodies_never_tracked_are_within_any_limit():
+    """The fast path's range check on a frame with no tracked position at all (every body lost):
+    nothing is out of range, so the dropout rule, not a crash, refuses the recording."""
+    assert RS._within(np.full((4, 5, 3), np.nan), 5.0)
+    assert RS._within(np.array([np.nan, 5.0, -5.0]), 5.0)
+    assert not RS._within(np.array([np.nan, 5.001]), 5.0)
