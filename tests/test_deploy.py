@@ -49,10 +49,8 @@ def _workspace(rng) -> dict:
                 bin_lo_deg=160.0, bin_width_deg=10.0, rho_max=[[3600.0, 3250.0, 3550.0]] * 11)
 
 
-@pytest.fixture(scope="module")
-def man_path(tmp_path_factory) -> Path:
-    """A manifest exported from a synthetic policy run and workspace, with a short schedule."""
-    d = tmp_path_factory.mktemp("manifest")
+def _export(d: Path, schedule: dict) -> Path:
+    """A manifest exported from a synthetic policy run and workspace, with the given schedule."""
     rng = np.random.default_rng(3)
     cfg = yaml.safe_load(open(ROOT / "config.yaml"))
     ws = _workspace(rng)
@@ -65,13 +63,26 @@ def man_path(tmp_path_factory) -> Path:
     proto["rig"]["rated_speed_tick_s"] = 30000.0  # a short preload ramp: the test is about the bus
     # generous reply timeout and watchdog: client and bus share a loaded CI machine, which may not run
     # either for tens of ms; every fault is still detected (and named) the same way, only later
-    dcfg = dict(cfg["deployment"], schedule=FAST, policy=cfg["policy"], n_placements=3, reply_timeout_ms=250,
-                watchdog_ms=1000)
+    dcfg = dict(cfg["deployment"], schedule=schedule, policy=cfg["policy"], n_placements=3,
+                reply_timeout_ms=250, watchdog_ms=1000)
     man = MF.build({"policy_run": d / "run.json"}, run, ws, dict(lever_ticks_per_rad=[2300, 1450, 1440],
                    ceiling_rad_s=[1.3, 2.1, 2.1]), dcfg, proto, {}, {})
     p = d / "manifest.json"
     p.write_text(json.dumps(man))
     return p
+
+
+@pytest.fixture(scope="module")
+def man_path(tmp_path_factory) -> Path:
+    """A short schedule: a whole trial in about a second."""
+    return _export(tmp_path_factory.mktemp("manifest"), FAST)
+
+
+@pytest.fixture(scope="module")
+def long_man_path(tmp_path_factory) -> Path:
+    """FAST with a carry hold of 10 s: a signal sent 0.4 s in lands mid-trial even when a loaded
+    machine runs the test seconds late (with FAST alone the client had once finished first)."""
+    return _export(tmp_path_factory.mktemp("long_manifest"), dict(FAST, carry_hold_s=10.0))
 
 
 def _man(p):
@@ -324,6 +335,7 @@ def _subprocess_trial(man_path, tmp_path, sig, done=lambda bus: True):
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
         while bus.now() < 0.4 and proc.poll() is None:
             time.sleep(0.01)
+        assert proc.poll() is None, f"the client ended before the signal: {proc.communicate()}"
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=20)
         time.sleep(man["servos"]["watchdog_ms"] / 1000 + 0.05)
@@ -333,16 +345,16 @@ def _subprocess_trial(man_path, tmp_path, sig, done=lambda bus: True):
         bus.stop()
 
 
-def test_sigint_mid_trial(man_path, tmp_path):
-    rc, err, bus, man = _subprocess_trial(man_path, tmp_path, signal.SIGINT)
+def test_sigint_mid_trial(long_man_path, tmp_path):
+    rc, err, bus, man = _subprocess_trial(long_man_path, tmp_path, signal.SIGINT)
     assert rc == 1 and "interrupted (SIGINT)" in err and "torque off on all servos" in err
     assert not any(bus.torque_states())
     _inside_envelope(man, bus)
     _aborted(tmp_path)
 
 
-def test_sigkill_mid_trial_the_watchdog_stops_the_servos(man_path, tmp_path):
-    rc, _, bus, man = _subprocess_trial(man_path, tmp_path, signal.SIGKILL, done=_stopped_and_stepped_on)
+def test_sigkill_mid_trial_the_watchdog_stops_the_servos(long_man_path, tmp_path):
+    rc, _, bus, man = _subprocess_trial(long_man_path, tmp_path, signal.SIGKILL, done=_stopped_and_stepped_on)
     assert rc == -signal.SIGKILL
     period = man["servos"]["watchdog_ms"] / 1000
     assert set(bus.stopped_at) == set(range(1, 10))

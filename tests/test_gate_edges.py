@@ -137,6 +137,27 @@ def test_the_limit_applies_across_a_dropout_to_the_next_tracked_sample(tmp_path)
 
 
 
+def test_a_body_tracked_in_two_samples_only_has_its_speed_checked(tmp_path):
+    """Two tracked samples are the fewest that have a speed: a jump between them 1.01 x the limit
+    is refused, 0.99 x passes (the gate's motion check alone, on a 2-sample recording)."""
+    from embodied_snap.rawschema import TRACKED_BODIES
+    from embodied_snap.validate import _check_motion
+
+    t = np.array([T0, T0 + 1 / HZ])
+    for factor, ok in ((0.99, True), (1.01, False)):
+        mocap = {"t": t}
+        for b in TRACKED_BODIES:
+            mocap[f"{b}_valid"] = np.array([True, True])
+            for c in "xyz":
+                mocap[f"{b}_{c}"] = np.zeros(2)
+        mocap["tip_x"] = np.array([0.0, factor * MAX_SPEED["tip"] / HZ])
+        if ok:
+            _check_motion(mocap, tmp_path / "mocap.parquet", G, LIMITS, False, (t[0], t[-1]))
+        else:
+            with pytest.raises(RecordingError, match=r"rule: tip speed <= 10 m/s"):
+                _check_motion(mocap, tmp_path / "mocap.parquet", G, LIMITS, False, (t[0], t[-1]))
+
+
 # --- tracking: a body's longest gap and the target's tracked share ---------------------------------
 
 

@@ -93,10 +93,11 @@ def test_preflight_compares_each_servo_with_its_own_limits(man):
 
 def test_preflight_reads_negative_limits_as_signed(man):
     m = json.loads(json.dumps(man))
-    m["envelope"]["eeprom_min"][0] = -4096
+    m["envelope"]["eeprom_min"][0], m["envelope"]["eeprom_max"][0] = -4096, -1
     bus = FakeBus(m)
-    assert bus.regs[m["servos"]["ids"][0]][CT.MIN_POSITION_LIMIT] == 2**32 - 4096  # on the wire
-    client.preflight(bus, m)
+    i = m["servos"]["ids"][0]
+    assert (bus.regs[i][CT.MIN_POSITION_LIMIT], bus.regs[i][CT.MAX_POSITION_LIMIT]) == (2**32 - 4096, 2**32 - 1)
+    client.preflight(bus, m)  # both four-byte registers read as signed 32-bit: -4096 .. -1
 
 
 # --- Bus._check, the SDK's result and error bytes ------------------------------------------------------
@@ -294,7 +295,7 @@ def test_the_commanded_bearing_is_the_targets_own_turned_by_dphi(man):
 
 
 def test_the_refusal_names_the_target_its_features_and_the_box(man):
-    target = [0.05, -0.45, 0.02]
+    target = [0.05123, -0.45678, 0.02345]  # more digits than the line keeps
     g = _features(man, target)
     lo, hi = (np.asarray(man["target_box"][k]) for k in ("lo", "hi"))
     assert not np.all((g >= lo) & (g <= hi))
@@ -303,3 +304,70 @@ def test_the_refusal_names_the_target_its_features_and_the_box(man):
     with pytest.raises(C.RefusedTarget) as e:
         C.commands(man, target)
     assert str(e.value) == want
+
+
+# --- Eq. 5-8 written out, on a manifest where every step changes the numbers --------------------------
+
+
+def _turned(p, n, deg):
+    """p turned about the unit axis n by deg (Rodrigues), written out."""
+    a = np.radians(deg)
+    return p * np.cos(a) + np.cross(n, p) * np.sin(a) + n * (n @ p) * (1 - np.cos(a))
+
+
+def _by_hand(man, target):
+    """The commands of paper Eq. 5-8 from the manifest's numbers, without embodied_snap.policy.actions
+    or commands(): the network (Eq. 6) is the one shared piece."""
+    from embodied_snap.policy import networks
+
+    ws, pol, act = man["workspace"], man["policy"], man["actions"]
+    n = np.asarray(ws["hanging_axis"], float)
+    g = _features(man, target)
+    z = (g - np.asarray(pol["norm"]["mu"])) / np.asarray(pol["norm"]["sd"])
+    u = networks.outputs(pol["arch"], np.asarray(pol["theta"], float), z[None, :])[0]
+    out = {}
+    for j, a in enumerate(networks.ACTIONS):  # Eq. 7
+        lo, hi = act["ranges"][a]
+        f = (min(max(u[j], -1.0), 1.0) + 1.0) / 2.0
+        out[a] = lo + (hi - lo) * (f**2 if a == "s3" else f)
+    b = ws["phi0_deg"] + out["dphi"]  # Eq. 8: the workspace bin of the commanded canonical bearing
+    k = min(max(int(np.floor((b - ws["bin_lo_deg"]) / ws["bin_width_deg"])), 0), len(ws["rho_max"]) - 1)
+    for i in range(3):
+        out[f"rho{i + 1}"] = min(out[f"rho{i + 1}"], act["workspace_fraction"] * ws["rho_max"][k][i])
+    out["tau"] = min(max(out["tau"], act["timing_s"][0]), act["timing_s"][1])
+    # turned back from the canonical bearing: the target's own bearing, less delta_str, plus dphi
+    out["bearing"] = (float(BR.bearing_deg(np.asarray(target, float), n)) - ws["delta_str_deg"]
+                      + out["dphi"]) % 360.0
+    return out
+
+
+def test_commands_are_eq_5_to_8_written_out(man):
+    """Targets at 24 bearings about the hanging axis (the features, and so the box, do not depend on
+    the bearing), on a manifest whose normalisation is not the identity, whose timing set is the
+    middle fifth of the tau range and whose workspace bins differ: every clamp binds somewhere."""
+    m = json.loads(json.dumps(man))
+    ws, act = m["workspace"], m["actions"]
+    lo, hi = act["ranges"]["tau"]
+    act["timing_s"] = [lo + 0.4 * (hi - lo), lo + 0.6 * (hi - lo)]
+    rng = np.random.default_rng(7)
+    ws["rho_max"] = (np.asarray(ws["rho_max"]) * rng.uniform(0.3, 1.0, np.shape(ws["rho_max"]))).tolist()
+    m["policy"]["theta"] = rng.normal(0, 1.0, len(m["policy"]["theta"])).tolist()
+    assert not np.allclose(m["policy"]["norm"]["mu"], 0) and not np.allclose(m["policy"]["norm"]["sd"], 1)
+    n = np.asarray(ws["hanging_axis"], float)
+    clipped = dict(tau_lo=0, tau_hi=0, rho=0)
+    raw_bearings = []
+    for pl in m["placements"]:
+        for deg in range(0, 360, 15):
+            p = _turned(np.asarray(pl["target_m"], float), n, deg)
+            want, got = _by_hand(m, p), C.commands(m, p)
+            assert set(got) == set(want)
+            for k in want:
+                assert got[k] == pytest.approx(want[k], rel=1e-9, abs=1e-9), (k, deg)
+            clipped["tau_lo"] += want["tau"] == act["timing_s"][0]
+            clipped["tau_hi"] += want["tau"] == act["timing_s"][1]
+            clipped["rho"] += any(want[f"rho{i}"] < act["ranges"][f"rho{i}"][1] * 0.999
+                                  and want[f"rho{i}"] in [act["workspace_fraction"] * r[i - 1] for r in ws["rho_max"]]
+                                  for i in (1, 2, 3))
+            raw_bearings.append(float(BR.bearing_deg(p, n)) - ws["delta_str_deg"] + want["dphi"])
+    assert min(clipped.values()) > 0, clipped  # each clamp bound at least once
+    assert min(raw_bearings) < 0 or max(raw_bearings) >= 360  # the bearing wrapped at least once
