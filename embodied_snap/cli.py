@@ -212,10 +212,23 @@ def cmd_audit(a) -> int:
     cfg = _run_config(a)
     _fits_run(a, cfg)
     if not (Path(a.root) / _path(a.result, "RESULT")).exists():
-        raise UsageError(f"{a.result}: no such file or directory under {a.root}")
+        if ":" not in a.result and "/" in a.result:
+            raise UsageError(f"{a.result}: no such file or directory under {a.root}")
+        return _audit_number(a)  # CLAIM_ID or FILE:KEY
     report = audit(a.result, root=a.root, config=cfg)
     print(json.dumps(report, indent=1, default=str) if a.json else format_audit(report))
     return 1 if report.get("stale") else 0
+
+
+def _audit_number(a) -> int:
+    from .lineage.numbers import NumberError, audit_number, format_number
+
+    try:
+        r = audit_number(a.result, root=a.root)
+    except NumberError as e:
+        raise UsageError(str(e)) from None
+    print(json.dumps(r, indent=1, default=str) if a.json else format_number(r))
+    return 1 if r["stale"] else 0
 
 
 def cmd_check_separation(a) -> int:
@@ -486,8 +499,10 @@ def parser() -> argparse.ArgumentParser:
         v.add_argument("--exclude", action="append", help="leave this group out, as raw_data.exclude (repeatable)")
         v.set_defaults(fn=fn)
 
-    au = sub.add_parser("audit", help="which recordings fed RESULT, which never did, and whether it is stale")
-    au.add_argument("result")
+    au = sub.add_parser("audit", help="which recordings fed RESULT (a file, a claim id or FILE:KEY), which never "
+                                      "did, and whether it is stale")
+    au.add_argument("result", metavar="RESULT", help="a file or directory of the run, a claim id of the ledger "
+                    "(tendon_travel_per_tick_um), or FILE:KEY (results/characterize/servo.json:rate_tick_s)")
     au.add_argument("--root", default=".")
     au.add_argument("--json", action="store_true")
     _config_args(au, "default: the config the last run recorded")

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import yaml
 
+from .sources import named, trace
+
 REFERENCE = Path(__file__).resolve().parent.parent / "reference" / "paper_values.yaml"
 
 
@@ -57,12 +59,15 @@ def paper_column(section: str, path: str | Path = REFERENCE) -> dict:
     return {cid: r["paper"] for cid, r in paper_values(path)[section].items()}
 
 
-def claim_rows(section: str, ours: dict, path: str | Path = REFERENCE) -> list[dict]:
+def claim_rows(section: str, ours, artifacts: dict, path: str | Path = REFERENCE) -> list[dict]:
     """Rows of a stage's claims.csv: every claim of `section` in the reference file, the paper's value
-    beside ours (claim id -> value)."""
+    beside ours, and where ours was read (`source`, artifact:key). `ours(views, out)` assigns each
+    claim to `out` from the artifacts' views (embodied_snap.sources.trace); `artifacts`: name ->
+    (path, JSON value), or a list of them, or a bare value (named by its name, in tests)."""
+    values, sources = trace(ours, named(artifacts))
     return [
         dict(claim_id=cid, section=r["section"], quantity=r["quantity"], paper=fmt(r["paper"]),
-             ours=fmt(ours[cid]), unit=r["unit"])
+             ours=fmt(values[cid]), unit=r["unit"], source=sources[cid])
         for cid, r in paper_values(path)[section].items()
     ]
 

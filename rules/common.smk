@@ -182,6 +182,22 @@ def claims_tables(wildcards=None):
     )
 
 
+def claims_artifacts(wildcards=None):
+    """The JSON artifacts the claims tables' rules read or write: the ledger reads each one's
+    recordings, for the recordings of each number (docs/lineage.md, "A number's lineage").
+    """
+    tables = set(claims_tables())
+    return sorted(
+        {
+            str(f)
+            for r in workflow.rules
+            if tables & {str(o) for o in r.output}
+            for f in [*r.input, *r.output]
+            if isinstance(f, str) and re.fullmatch(r"results/\S+\.json", f)
+        }
+    )
+
+
 # Fig. 1b shows the first attachment trial: a recorded strike at a target, every release labelled.
 FIG1_GROUP = min(select(evidence_set="attachment").group_id)
 

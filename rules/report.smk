@@ -114,12 +114,15 @@ rule table_claims:
     """The claims ledger: every stage's claims, judged against the paper; the report's captions."""
     input:
         claims=claims_tables,
+        artifacts=claims_artifacts,
         figs=expand("results/figs/{fig}.png", fig=FIGURES),
         separation="results/lineage/separation.json",
         reference="reference/paper_values.yaml",
         captions=expand("report/{fig}.rst", fig=FIGURES),
         docs=sorted(glob.glob("docs/*.md")),
         index=raw_index(),
+        # the deployment trials' evidence set, for the Table II numbers' recordings
+        trials=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
         split="results/splits/split.csv",
         manifest="results/raw/manifest.json",
         code=imports("table_claims"),

@@ -177,6 +177,8 @@ def test_release_summary():
     rows = [dict(category="direct", v_peak=v, rate_peak=[0, 0, 0]) for v in (0.7, 0.72, 0.75)]
     rows += [dict(category="ramped", v_peak=v, rate_peak=[0, 0, 0]) for v in (0.8, 1.4)]
     rows += [dict(category="instantaneous", v_peak=v, rate_peak=[2.0, 4.0, 6.0]) for v in (0.9, 1.5, 1.6, 1.7)]
+    for i, r in enumerate(rows):
+        r["group_id"] = f"rel_{i:04d}"
     out = release.summarize(rows, [1.0, 2.0, 3.0], 1.0)
     assert out["direct_range_mps"] == [0.7, 0.75]
     assert out["instant_fraction_over_1mps"] == 0.75
@@ -194,8 +196,8 @@ def test_attachment_model_separable_and_counts():
     rows = []
     for i in range(120):
         v, tilt = rng.uniform(0.6, 1.8), rng.uniform(0, 90)
-        rows.append(dict(v_peak=v, tilt_deg=tilt, lateral_m=rng.uniform(0, 0.3), session=f"s{i % 6}",
-                         attached=bool(v > 1.0 and tilt < 60)))
+        rows.append(dict(group_id=f"att_{i:04d}", v_peak=v, tilt_deg=tilt, lateral_m=rng.uniform(0, 0.3),
+                         session=f"s{i % 6}", attached=bool(v > 1.0 and tilt < 60)))
     out = attachment.fit(rows, 1.0)
     assert out["auc_grouped_cv"] > 0.9
     assert out["attached_below_1mps"] == 0
@@ -219,7 +221,8 @@ def test_snap_classifier_known_region(tmp_path):
     rows = []
     for i in range(300):
         r1, r2 = rng.uniform(2400, 3700), rng.uniform(2100, 3300)
-        rows.append(dict(rho1=r1, rho2=r2, session=f"s{i % 6}", v_peak=1.5 if r1 + r2 > 5800 else 0.7))
+        rows.append(dict(group_id=f"dyn_{i:04d}", rho1=r1, rho2=r2, session=f"s{i % 6}",
+                         v_peak=1.5 if r1 + r2 > 5800 else 0.7))
     out = snap.fit(rows, 1.0, grid_n=61)
     assert out["auc_grouped_cv"] > 0.95
     # true area with r1 + r2 > 5800 over the box (geometry), the P > 0.8 part sits inside it
@@ -235,7 +238,7 @@ def test_snap_classifier_known_region(tmp_path):
 
 
 def test_snap_single_class_is_flagged():
-    rows = [dict(rho1=3000.0 + i, rho2=2700.0 + i, session="s1", v_peak=1.5) for i in range(5)]
+    rows = [dict(group_id=f"dyn_{i:04d}", rho1=3000.0 + i, rho2=2700.0 + i, session="s1", v_peak=1.5) for i in range(5)]
     out = snap.fit(rows, 1.0, grid_n=11)
     assert out["degenerate"] and np.isnan(out["auc_grouped_cv"])
     assert out["fraction_box_p_gt_0p8"] == 1.0
@@ -249,7 +252,8 @@ def test_delay_sweep_summary():
     for tau, v in speed.items():
         for k in range(3):
             att = tau >= 0.45 and tau <= 0.65
-            rows.append(dict(tau=tau, v_peak=v + 0.001 * k, closest_m=0.01 if att else 0.1, attached=att))
+            rows.append(dict(group_id=f"dly_{len(rows):04d}", tau=tau, v_peak=v + 0.001 * k,
+                             closest_m=0.01 if att else 0.1, attached=att))
     out = delay.summarize(rows)
     assert out["best_tau_s"] == 0.55
     assert out["speed_optimal_taus"] == [0.5, 0.6]  # within 3 % of 1.6
@@ -263,7 +267,8 @@ def _sweep(attached_taus, speed=None):
     """Three trials per delay 0.15..0.70 s; the speed peaks at 0.55 s unless `speed` says otherwise."""
     taus = [0.15, 0.30, 0.45, 0.50, 0.55, 0.60, 0.65, 0.70]
     speed = speed or {0.15: 1.1, 0.30: 1.2, 0.45: 1.45, 0.50: 1.5, 0.55: 1.6, 0.60: 1.5, 0.65: 1.45, 0.70: 1.4}
-    return [dict(tau=t, v_peak=speed[t], closest_m=0.01, attached=t in attached_taus) for t in taus for _ in range(3)]
+    rows = [dict(tau=t, v_peak=speed[t], closest_m=0.01, attached=t in attached_taus) for t in taus for _ in range(3)]
+    return [dict(r, group_id=f"dly_{k:04d}") for k, r in enumerate(rows)]
 
 
 @pytest.mark.parametrize("attached, supported", [

@@ -19,6 +19,9 @@ def fits(one_class=False):
     sn = [dict(rho1=a, rho2=b, session=f"s{i % 3}", v_peak=1.5 if one_class or a > 3000 else 0.8)
           for i, (a, b) in enumerate(zip(rng.uniform(2400, 3700, 30), rng.uniform(2100, 3300, 30)))]
     dl = [dict(tau=t, v_peak=1.0 + t, closest_m=0.14, attached=t >= 0.45) for t in (0.15, 0.3, 0.45, 0.5, 0.55)]
+    for rows in (rel, att, sn, dl):  # each trial a group, as the fits' rows are
+        for i, r in enumerate(rows):
+            r["group_id"] = f"g{i:04d}"
     return (
         dict(ceiling_rad_s=[1.34, 2.2, 2.2]),
         release.summarize(rel, [1.34, 2.2, 2.2], 1.0),

@@ -18,6 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from gate_corpus import BENIGN, CORPUS, TWIN, opened_any, opens, outside_targets
 
@@ -216,3 +217,10 @@ def test_exclusion_is_the_users_decision(wf, raw, capsys, monkeypatch):
     )
     assert "att_0004" not in rep["evidence_sets"]["attachment"]["fed"] and not rep["stale"]
     assert rep["evidence_sets"]["attachment"]["n_fed"] == 7
+    # a number of that fit is fed by exactly the 7 trials it used, of the set's 8 (issue 28)
+    rep = json.loads(run([str(BIN / "esnap"), "audit", "attachment_n", "--json"], wf).stdout)
+    s = rep["lineage"]["evidence_sets"]
+    assert list(s) == ["attachment"] and s["attachment"]["n_total"] == 8 and not rep["stale"]
+    assert s["attachment"]["used"] == [f"att_{i:04d}" for i in (1, 2, 3, 5, 6, 7, 8)]
+    ledger = pd.read_csv(wf / "results/tables/claims.csv").set_index("claim_id")
+    assert ledger.loc["attachment_n", "fed_by"] == "attachment 7/8"

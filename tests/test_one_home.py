@@ -84,7 +84,8 @@ style.save = lambda fig, pdf, png: figs.append(fig)
 from embodied_snap.figures.benchmark import plot_benchmark
 plot_benchmark(summary, "fig5.pdf", "fig5.png")
 a, b, c = figs[0].axes
-ours = claims._ours(summary)
+from embodied_snap.sources import trace
+ours, _ = trace(claims._ours, dict(summary=("summary.json", summary)))
 print(json.dumps(dict(
     archs=summary["archs"],
     ours={k: v for k, v in ours.items() if "centralised32" in k},

@@ -102,8 +102,10 @@ def _run(root):
     fit = _write(root, "results/characterize/servo.json", b"{}")
     pv.write_record("characterize_servo", {}, files, [fit], {}, "t", root=root)
     claims = _write(root, "results/characterize/claims.csv", (
-        "claim_id,section,quantity,paper,ours,unit\n"
-        "a,III-A,first,15.8,16.09,um\nb,III-A,second,\"[1, 2]\",3,-\nc,III-B,third,,4,-\n").encode())
+        "claim_id,section,quantity,paper,ours,unit,source\n"
+        "a,III-A,first,15.8,16.09,um,results/characterize/servo.json:a\n"
+        "b,III-A,second,\"[1, 2]\",3,-,results/characterize/servo.json:b\n"
+        "c,III-B,third,,4,-,results/characterize/servo.json:c\n").encode())
     pv.write_record("table_characterize_claims", {}, [fit, "reference/paper_values.yaml"], [claims], {}, "t",
                     root=root, reads=[fit])
     fig = _write(root, "results/figs/fig2_limits.png", b"png")

@@ -96,6 +96,9 @@ def test_report_opens_in_chromium_with_every_figure_and_table(wf):
     assert {"results/tables/table1_evidence.html", "results/tables/claims.html"} <= tables
     assert set(res["results"]) == figs | tables
     assert all(v.startswith(("image", "table")) for v in res["results"].values())
+    n = len((wf / "results/tables/claims.csv").read_text().splitlines()) - 1
+    # each number of the ledger links to its audit, and the browser followed one (issue 28)
+    assert res["results"]["results/tables/claims.html"] == f"table of {n} rows, {n} links to their sections"
     assert (wf / "results/report.png").stat().st_size > 10_000
     # captions carry the ledger's numbers and the lineage
     text = html.read_text()
@@ -113,6 +116,21 @@ def test_report_check_fails_on_a_broken_png(wf):
         f.write_bytes(good)
         os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns))
     assert res["problems"] == ["results/figs/fig2_limits.png: the image does not load (naturalWidth 0)"]
+
+
+def test_report_check_fails_on_a_claim_linked_to_no_audit(wf):
+    check_report = _browser()
+    f = wf / "results/tables/claims.html"
+    good, st = f.read_text(), f.stat()
+    f.write_text(good.replace('<section id="audit-tendon_travel_per_tick_um">', "<section>"))
+    try:
+        res = check_report(_report(wf), only=["results/tables/claims.html"])
+    finally:
+        f.write_text(good)
+        os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns))
+    n = len((wf / "results/tables/claims.csv").read_text().splitlines()) - 1
+    assert res["problems"] == [f"results/tables/claims.html: 1 of {n} links lead nowhere, "
+                               "first #audit-tendon_travel_per_tick_um"]
 
 
 def test_crate_lists_every_result_and_reaches_every_raw_group_of_a_figure(wf):

@@ -163,6 +163,37 @@ def test_audit_of_train_windows_names_train_groups_only(wf):
     assert never == {"attachment", "delay_sweep", "servo_calibration", "release_mode", "held_base"}
 
 
+def test_each_number_is_fed_by_the_recordings_of_its_own_fit(wf):
+    """Issue 28: every ledger row has its own artifact:key; the III-A calibration numbers are fed by
+    the calibration bursts alone, the IV-A sealed numbers by sealed dynamics groups alone, Table II's
+    by the deployment trials alone."""
+    from embodied_snap.characterize.claims import OURS
+
+    rows = {r["claim_id"]: r for r in pd.read_csv(wf / "results/tables/claims.csv", dtype=str,
+                                                  keep_default_na=False).to_dict("records")}
+    assert all(r["source"] and all(re.fullmatch(r"results/\S+\.json:\S+", s) for s in r["source"].split())
+               for r in rows.values())
+    assert all(r["artifact"] == " ".join(dict.fromkeys(s.split(":")[0] for s in r["source"].split()))
+               for r in rows.values())
+    n = pd.read_csv(wf / "raw_data/index.csv").evidence_set.value_counts()
+    cal = [c for c, (fit, _) in OURS.items() if fit in ("kinematics", "servo")]
+    assert len(cal) == 12
+    for c in cal:
+        assert rows[c]["fed_by"] == f"servo_calibration {n['servo_calibration']}/{n['servo_calibration']}", c
+    split = pd.read_csv(wf / "results/splits/split.csv")
+    sealed = set(split[split.role == "sealed"].group_id)
+    r = json.loads(run([str(BIN / "esnap"), "audit", "sealed_gru_tip_mm_0p3", "--json"], wf).stdout)
+    used = r["lineage"]["evidence_sets"]["dynamics"]["used"]
+    assert list(r["lineage"]["evidence_sets"]) == ["dynamics"] and set(used) <= sealed and used and not r["stale"]
+    dep = pd.read_csv(wf / "raw_data/deployment/index.csv")
+    for c in ("preload_reached", "fast_snap", "peak_speed_median_mps", "retrieved"):
+        assert rows[c]["fed_by"] == f"deployment {len(dep)}/{len(dep)}", c
+    out = run([str(BIN / "esnap"), "audit", "tendon_travel_per_tick_um"], wf).stdout
+    assert out.startswith("CLAIM tendon_travel_per_tick_um  (III-A:") and "stale: no" in out
+    k = n["servo_calibration"]
+    assert re.search(rf"^fed by {k} raw group\(s\) from 1 evidence set\(s\):\n  servo_calibration +{k}/{k} ", out, re.M)
+
+
 def test_changing_one_attachment_recording_reruns_only_its_dependents(wf):
     f = wf / "raw_data/groups/att_0003/mocap.parquet"
     df = pd.read_parquet(f)

@@ -11,6 +11,7 @@ from embodied_snap.characterize import heldbase, load
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
+from embodied_snap.sources import recordings
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -19,6 +20,6 @@ with tracked(snakemake):
     gap = from_params(p.protocol).sampling.max_gap_s  # mocap dropouts bridged
     d = p.detectors  # config characterize.heldbase: thresholds and window_s
     tr = [dict(group_id=g, **heldbase.trial(*load.group(p.raw, g), servo_fit, d, gap)) for g in p.groups]
-    out = heldbase.summarize(tr, d["window_s"])
+    out = dict(heldbase.summarize(tr, d["window_s"]), recordings=recordings(p.groups, p.groups))
     print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -11,6 +11,7 @@ from embodied_snap.characterize import load
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import write_json
+from embodied_snap.sources import recordings
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -20,5 +21,6 @@ with tracked(snakemake):
     fit = K.fit_levers(rows, p.quantile)
     fit["travel_per_tick_um"] = K.travel_per_tick_um(rows, fit, p.tendon_radius_m)
     fit["n_bursts"] = len(p.groups)
+    fit["recordings"] = recordings(p.groups, p.groups)  # every burst enters the fit
     print(fit, file=sys.stderr)
     write_json(dict(fit, rows=rows), snakemake.output[0])

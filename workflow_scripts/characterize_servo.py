@@ -14,6 +14,7 @@ from embodied_snap.characterize import servo as S
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
 from embodied_snap.rawformat import servo_id, write_json
+from embodied_snap.sources import recordings
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -33,6 +34,7 @@ with tracked(snakemake):
     peaks = S.peak_rates(bursts)
     fit.update(n_bursts=len(bursts), rated_tick_s=rated, ceiling_rad_s=S.ceilings(rated, lever),
                peak_rate_over_rated_5_95=[float(x) for x in np.percentile(peaks / rated, [5, 95])],
-               peak_rates_tick_s=peaks.tolist(), lever_ticks_per_rad=lever)
+               peak_rates_tick_s=peaks.tolist(), lever_ticks_per_rad=lever,
+               recordings=recordings(p.groups, p.groups))  # every burst enters the fit
     print({k: v for k, v in fit.items() if k != "peak_rates_tick_s"}, file=sys.stderr)
     write_json(fit, snakemake.output[0])

@@ -29,6 +29,8 @@ with tracked(snakemake):
     trials.to_csv(O.trials, index=False, lineterminator="\n")
     s = D.summarize(trials, aborted["planned"], len(man["placements"]), P.bend_deg, P.fast_mps,
                     len(aborted["aborted"]))
+    s["recordings"] = dict(used=sorted(trials.group_id) if len(trials) else [],
+                           dropped={a["group_id"]: a["cause"] for a in aborted["aborted"]})
     write_json(s, O.summary)
     t2 = D.table2(s, P.bend_deg, P.fast_mps, I.reference)
     print(t2.to_string(), file=sys.stderr)
@@ -38,4 +40,5 @@ with tracked(snakemake):
     open(O.html, "w").write(html.table("Table II: deployment of the frozen shared policy",  # the report's view
                                        f"{len(trials)} trials recorded, {len(aborted['aborted'])} aborted or rejected.",
                                        list(t2.columns), t2.to_dict("records")))
-    pd.DataFrame(D.claims(s, man, I.reference)).to_csv(O.claims, index=False, lineterminator="\n")
+    claims = D.claims((O.summary, s), (I.manifest, man), I.reference)
+    pd.DataFrame(claims).to_csv(O.claims, index=False, lineterminator="\n")

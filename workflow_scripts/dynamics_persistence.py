@@ -18,6 +18,7 @@ with tracked(snakemake):
     dt, arm = proto.sampling.dt, proto.rig.arm_length_m
     W = load_windows(snakemake.input.validation)
     h = E.eval_horizon(dt)
-    out = E.summary(E.persistence_tip_mm(W, E.eligible(W, h), h), dt, arm)
+    idx = E.eligible(W, h)
+    out = dict(E.summary(E.persistence_tip_mm(W, idx, h), dt, arm), recordings=E.recordings_of(W, idx))
     print(out["at_s_mm"], file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -24,7 +24,8 @@ with tracked(snakemake):
     h = E.eval_horizon(dt)
     idx = E.eligible(W, h)
     out = {"n_windows_all": int(len(W["anchors"])), "n_groups": int(len(W["group_ids"])),
-           "persistence": E.summary(E.persistence_tip_mm(W, idx, h), dt, arm), "seeds": {}}
+           "persistence": E.summary(E.persistence_tip_mm(W, idx, h), dt, arm), "seeds": {},
+           "recordings": E.recordings_of(W, idx)}
     for seed, path in zip(snakemake.params.seeds, snakemake.input.models):
         out["seeds"][str(seed)] = E.summary(E.model_tip_mm(load(path), W, idx, h), dt, arm)
         print(seed, out["seeds"][str(seed)]["at_s_mm"], file=sys.stderr)

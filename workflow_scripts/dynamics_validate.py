@@ -26,5 +26,6 @@ with tracked(snakemake):
     idx = E.eligible(W, h)
     out = E.summary(E.model_tip_mm(model, W, idx, h), dt, arm)
     out["carry_gap"] = E.carry_gap(model, W, idx)
+    out["recordings"] = E.recordings_of(W, idx)
     print(out["at_s_mm"], out["carry_gap"], file=sys.stderr)
     write_json(out, snakemake.output[0])

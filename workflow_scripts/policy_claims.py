@@ -15,6 +15,6 @@ from embodied_snap.policy.claims import rows
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    df = pd.DataFrame(rows(json.load(open(snakemake.input.summary))))
+    df = pd.DataFrame(rows((snakemake.input.summary, json.load(open(snakemake.input.summary)))))
     print(df.to_string(), file=sys.stderr)
     df.to_csv(snakemake.output[0], index=False, lineterminator="\n")

@@ -7,8 +7,9 @@ from __future__ import annotations
 from ..reference import claim_rows
 
 
-def _ours(s: dict) -> dict:
-    R, out = s["rules"], {}
+def _ours(a, out) -> None:
+    s = a["summary"]
+    R = s["rules"]
     out["n_release_targets"] = R["target_only"]["n"]
     out["n_offset_targets"] = s["n_offset_targets"]
     for r in ("target_only", "clock", "s1_rate", "tip_speed", "s2_peak"):
@@ -26,8 +27,8 @@ def _ours(s: dict) -> dict:
         out[f"perturb_miss_pct_{key}"] = None if p is None else p["median_miss_pct_arm"]
     out["perturb_speed_0"] = P[0.0]["mean_peak_speed"] if 0.0 in P else None
     out["perturb_speed_2"] = P[2.0]["mean_peak_speed"] if 2.0 in P else None
-    return out
 
 
-def rows(summary: dict, path=None) -> list[dict]:
-    return claim_rows("ablation", _ours(summary), *([path] if path else []))
+def rows(summary, path=None) -> list[dict]:
+    """summary: (artifact path, its JSON), or the JSON alone."""
+    return claim_rows("ablation", _ours, dict(summary=summary), *([path] if path else []))

@@ -13,6 +13,7 @@ from sklearn.preprocessing import StandardScaler
 from statsmodels.stats.proportion import proportion_confint
 
 from ..rawformat import RecordingError
+from ..sources import recordings
 
 LATERAL_M = 0.150
 
@@ -46,7 +47,8 @@ def fit(rows, attach_speed_mps: float) -> dict:
     X = np.array([[x["v_peak"], x["tilt_deg"]] for x in r])
     y = np.array([bool(x["attached"]) for x in r], int)
     sess = np.array([x["session"] for x in r])
-    out = dict(n=len(r), n_attached=int(y.sum()), auc_grouped_cv=grouped_auc(X, y, sess),
+    out = dict(recordings=recordings([x["group_id"] for x in r], [x["group_id"] for x in r]),
+               n=len(r), n_attached=int(y.sum()), auc_grouped_cv=grouped_auc(X, y, sess),
                trials=[dict(v=float(a), tilt=float(b), attached=int(c)) for (a, b), c in zip(X, y)])
     if len(set(y)) == 2:
         m = model().fit(X, y)

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 from statsmodels.stats.proportion import proportion_confint
 
+from ..sources import recordings
+
 SPEED_TOL = 0.97  # a delay is speed-optimal if its median peak speed is within 3% of the best
 
 
@@ -41,6 +43,7 @@ def summarize(rows) -> dict:
 
     closest = np.array([x["closest_m"] for x in r], float)
     return dict(
+        recordings=recordings([x["group_id"] for x in rows], [x["group_id"] for x in r], "no S1 delay in its program"),
         n=len(r),
         per_tau=per,
         closest_attached_median_m=float(np.nanmedian(closest[att])) if att.any() else float("nan"),

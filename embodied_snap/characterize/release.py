@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from statsmodels.stats.proportion import proportion_confint
 
+from ..sources import recordings
+
 
 def summarize(rows, ceilings_rad_s, attach_speed_mps: float) -> dict:
     by = {c: np.array([r["v_peak"] for r in rows if r["category"] == c and np.isfinite(r["v_peak"])])
@@ -18,7 +20,10 @@ def summarize(rows, ceilings_rad_s, attach_speed_mps: float) -> dict:
     rates = np.array([r["rate_peak"] for r in rows if r["category"] == "instantaneous"], float)
     med_rates = np.nanmedian(rates, axis=0) if len(rates) else np.full(3, np.nan)
     q = lambda x, p: [float(v) for v in np.percentile(x, p)] if len(x) else [float("nan")] * len(p)  # noqa: E731
+    used = [r["group_id"] for r in rows if r["category"] == "instantaneous"
+            or (r["category"] in by and np.isfinite(r["v_peak"]))]
     return dict(
+        recordings=recordings([r["group_id"] for r in rows], used, "no finite peak tip speed"),
         speeds={c: [float(v) for v in x] for c, x in by.items()},
         direct_range_mps=[float(by["direct"].min()), float(by["direct"].max())] if len(by["direct"]) else [np.nan] * 2,
         direct_median_mps=float(np.median(by["direct"])) if len(by["direct"]) else float("nan"),

@@ -13,6 +13,7 @@ import json
 import numpy as np
 from sklearn.linear_model import LogisticRegression
 
+from ..sources import recordings
 from .attachment import grouped_auc
 
 P_HIGH = 0.8
@@ -61,7 +62,9 @@ def fit(rows, attach_speed_mps: float, grid_n: int = 101) -> dict:
     X = np.array([[x["rho1"], x["rho2"]] for x in r], float)
     y = np.array([x["v_peak"] > attach_speed_mps for x in r], int)
     sess = np.array([x["session"] for x in r])
-    out = dict(n=len(r), n_event=int(y.sum()), auc_grouped_cv=grouped_auc(X, y, sess, make=_Quad),
+    out = dict(recordings=recordings([x["group_id"] for x in rows], [x["group_id"] for x in r],
+                                     "no finite peak tip speed"),
+               n=len(r), n_event=int(y.sum()), auc_grouped_cv=grouped_auc(X, y, sess, make=_Quad),
                trials=[dict(rho1=float(a), rho2=float(b), event=int(c)) for (a, b), c in zip(X, y)],
                box=[[float(X[:, 0].min()), float(X[:, 0].max())], [float(X[:, 1].min()), float(X[:, 1].max())]])
     if len(set(y)) < 2:

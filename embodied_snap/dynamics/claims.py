@@ -11,10 +11,9 @@ def _seed_range(summaries, key="at_s_mm", at=None):
     return [min(v), max(v)]
 
 
-def _ours(res: dict) -> dict:
+def _ours(res, out) -> None:
     val, sealed = res["validation"], res["sealed"]
     seeds = list(sealed["seeds"].values())
-    out = {}
     for s in ("0.3", "0.5", "0.7"):
         k = s.replace(".", "p")
         out[f"val_gru_tip_mm_{k}"] = _seed_range(val, at=s)
@@ -32,8 +31,8 @@ def _ours(res: dict) -> dict:
     out["hold_tip_mm"] = h["tip_mm_median"]
     out["hold_tip_pct_arm"] = h["tip_pct_arm_median"]
     out["hold_axis_deg"] = h["axis_deg_median"]
-    return out
 
 
 def rows(res: dict, path=None) -> list[dict]:
-    return claim_rows("dynamics", _ours(res), *([path] if path else []))
+    """res: persistence, sealed, gate, hold -> (artifact path, its JSON); validation -> a list of them."""
+    return claim_rows("dynamics", _ours, res, *([path] if path else []))

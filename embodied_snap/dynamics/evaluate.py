@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from ..sources import recordings
 from .model import TIP
 from .train import batch, prepare
 
@@ -29,6 +30,12 @@ def eligible(W: dict, horizon: int) -> np.ndarray:
     end = np.r_[np.flatnonzero(g[1:] != g[:-1]), len(g) - 1]  # last row of each group
     last = end[np.searchsorted(end, W["anchors"])]
     return np.flatnonzero(W["anchors"] + horizon + int(W["lookahead"]) - 1 <= last)
+
+
+def recordings_of(W: dict, idx: np.ndarray) -> dict:
+    """The groups whose windows `idx` are evaluated, and those of the file with none eligible."""
+    used = W["group_ids"][np.unique(W["group"][W["anchors"][idx]])]
+    return recordings(W["group_ids"].tolist(), used.tolist(), "no window spans the evaluation horizon")
 
 
 def persistence_tip_mm(W: dict, idx: np.ndarray, horizon: int) -> np.ndarray:

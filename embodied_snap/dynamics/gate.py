@@ -18,6 +18,7 @@ import torch
 
 from ..protocol import Protocol
 from ..resample import COMMAND_COLUMNS, STATE_COLUMNS
+from ..sources import recordings
 from .hold import release_row
 from .model import TIP
 
@@ -85,6 +86,8 @@ def sweep(models: dict, frames: pd.DataFrame, metas: dict[str, dict], after_s1: 
     best.update({s: float(taus[np.argmax([p["v_pred"][s] for p in per_tau])]) for s in pred})
     return {
         "n": len(rows),
+        "recordings": recordings(list(metas), [r["group_id"] for r in rows],
+                                 "its record does not cover the history and the window"),
         "window": {"from": "last frame before the S2 release", "after_s1_s": after_s1,
                    "rollout_steps": [min(r["H"] for r in rows), max(r["H"] for r in rows)]},
         "trials": rows,

@@ -58,13 +58,14 @@ class _Disk:
         return None if self.hash[p] == e["sha256"] else "sha256 changed"
 
 
-def audit(result: str, root=".", config: dict | None = None, check_disk: bool = True) -> dict:
+def audit(result: str, root=".", config: dict | None = None, check_disk: bool = True,
+          records: dict | None = None) -> dict:
     """`config`: the run's config (default: the one the last run recorded), for the raw directory.
     `check_disk=False`: lineage only, no staleness (a job inside the run, which must not read
-    files it did not declare)."""
+    files it did not declare). `records`: load_records(root), when the caller has them."""
     t0 = time.perf_counter()
     root = Path(root)
-    records = load_records(root)
+    records = load_records(root) if records is None else records
     raw = raw_dir_of(config if config is not None else last_config(root, records))
     result = _norm(result, root)
     starts = [result] if result in records else sorted(p for p in records if p.startswith(result + "/"))

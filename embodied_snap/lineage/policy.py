@@ -93,12 +93,12 @@ POLICY: dict[str, Source] = {
         ("characterize_heldbase", *CHAR_REPORTS),
         "held_base may feed the trigger-detection comparison, never the dynamics model or policies"),
     # Recorded after export (raw_data/deployment/, a tree of its own): a file source read only by
-    # Table II, Fig. 7, the separation proof (which also shows the manifest's inputs unchanged) and
-    # Table I, which counts the trials.
+    # Table II, Fig. 7, the separation proof (which also shows the manifest's inputs unchanged),
+    # Table I, which counts the trials, and the ledger, which names each Table II number's trials.
     "deployment": Source(
         DEPLOY_REPORTS,
         "deployment may feed Table II and Fig. 7, nothing upstream of the manifest", held_out=True,
-        readers=("deploy_table", "fig_deployment", "check_separation", "table_evidence")),
+        readers=("deploy_table", "fig_deployment", "check_separation", "table_evidence", LEDGER)),
     # The dynamics corpus by split role (440 / 78 / 20).
     "train": Source(
         ("windows(role=train)", "dynamics_train", "characterize_snap", "dynamics_hold", "policy_workspace",

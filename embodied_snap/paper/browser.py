@@ -55,6 +55,26 @@ def check_report(html, screenshot=None, show: str | None = None, only=None) -> d
     return dict(results=seen, problems=problems)
 
 
+def _links(frame, path: str, problems: list) -> str:
+    """In-page links (the ledger's claim ids to their audits): each must lead to a section of the
+    page, and following the last must bring its section into view."""
+    hrefs = frame.evaluate("() => [...document.querySelectorAll('a[href^=\"#\"]')]"
+                           ".map(a => a.getAttribute('href').slice(1))")
+    if not hrefs:
+        return ""
+    nowhere = frame.evaluate("ids => ids.filter(i => !document.getElementById(i))", hrefs)
+    if nowhere:
+        problems.append(f"{path}: {len(nowhere)} of {len(hrefs)} links lead nowhere, first #{nowhere[0]}")
+        return f", {len(hrefs)} links"
+    frame.locator(f'a[href="#{hrefs[-1]}"]').click()
+    frame.wait_for_timeout(200)
+    top = frame.evaluate("i => document.getElementById(i).getBoundingClientRect().top", hrefs[-1])
+    inner = frame.evaluate("() => innerHeight")
+    if not 0 <= top < inner:
+        problems.append(f"{path}: following #{hrefs[-1]} does not show its section (top {top:.0f} px)")
+    return f", {len(hrefs)} links to their sections"
+
+
 def _shown(page, path: str, problems: list) -> str:
     name = Path(path).name
     if path.endswith((".png", ".jpg", ".jpeg", ".svg")):
@@ -84,5 +104,5 @@ def _shown(page, path: str, problems: list) -> str:
             return "missing"
         if n < 2:
             problems.append(f"{path}: the table has no rows")
-        return f"table of {n - 1} rows"
+        return f"table of {n - 1} rows" + _links(frame.element_handle().content_frame(), path, problems)
     return "not checked"

@@ -2,9 +2,10 @@
 
 A stage's table is `results/<stage>/claims.csv` (claim_id, section, quantity, paper, ours, unit).
 The ledger adds `agrees` (ours inside the paper's interval, or within the relative tolerance of
-reference/paper_values.yaml where the paper gives a point value), `artifact` (the files the stage's
-claims job read its numbers from, from its provenance record), `fed_by` (evidence sets and group
-counts behind that artifact, from `esnap audit`) and, for a difference, the doc that explains it.
+reference/paper_values.yaml where the paper gives a point value), `artifact` (the files the row's
+`source`, artifact:key, names), `fed_by` (evidence sets and group counts of the recordings behind
+that one number: lineage.numbers, the code of `esnap audit CLAIM_ID`) and, for a difference, the doc
+that explains it.
 """
 
 from __future__ import annotations
@@ -16,14 +17,16 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..lineage.audit import audit
+from ..lineage import numbers
 from ..lineage.records import load_records
 from ..reference import tolerance
+from ..sources import parse_source
 from . import html
 from .sections import section_key
 
 COLUMNS = ("claim_id", "stage", "section", "quantity", "paper", "ours", "unit", "tolerance", "status",
-           "agrees", "artifact", "fed_by", "explained_in")
+           "agrees", "source", "artifact", "fed_by", "explained_in")
+AUDIT = "audit-"  # the id prefix of a claim's audit section in claims.html
 # status values
 AGREES, DIFFERS, NO_PAPER, NOT_MEASURED = "agrees", "differs", "no paper value", "not measured"
 
@@ -117,22 +120,23 @@ def ledger(files, root=".") -> list[dict]:
     """The rows of results/tables/claims.csv, in the order of `files` and of each table."""
     root = Path(root)
     records = load_records(root)
-    audits: dict[str, dict] = {}
+    audits: dict = {}  # one file audit per artifact, shared by its rows
     rows = []
     for f in files:
         stage = Path(f).parent.name
         rec = records.get(f)
         if rec is None:
             raise ValueError(f"{f}: no provenance record (rule: every claims table comes from a recorded job)")
-        reads = set(rec.get("reads") or [])
-        arts = [e["path"] for e in rec.get("inputs", [])
-                if e["path"].startswith("results/") and (not reads or e["path"] in reads)]
-        for a in arts:
-            if a not in audits:
-                audits[a] = audit(a, root, check_disk=False)
-        fed = _fed_by(*(audits[a] for a in arts))
+        # the artifacts its job read, or wrote (Table II's claims beside its summary)
+        known = {e["path"] for e in rec.get("inputs", []) + rec.get("outputs", [])}
         with open(root / f, newline="") as fh:
             for r in csv.DictReader(fh):
+                src = r.get("source") or ""
+                bad = [a for a, _ in parse_source(src) if a not in known]
+                if not src or bad:
+                    raise ValueError(f"{f}: claim {r['claim_id']}: " + (f"source {bad[0]} is no input of its job" if bad
+                                     else "no source") + " (rule: each claim names the artifact:key it was read from)")
+                lin = numbers.lineage(src, root, records, audits)
                 try:
                     p, o = parse(r["paper"]), parse(r["ours"])
                 except ValueError as e:
@@ -143,7 +147,8 @@ def ledger(files, root=".") -> list[dict]:
                 rows.append(dict(
                     claim_id=r["claim_id"], stage=stage, section=r["section"], quantity=r["quantity"],
                     paper=r["paper"], ours=r["ours"], unit=r["unit"], tolerance=tol, status=status,
-                    agrees="" if ok is None else ok, artifact=" ".join(arts), fed_by=fed,
+                    agrees="" if ok is None else ok, source=src, artifact=numbers.artifacts(lin),
+                    fed_by=numbers.fed_by(lin), _lineage=lin,
                     explained_in=_doc(stage, r["claim_id"], root) if status == DIFFERS else "",
                 ))
     return rows
@@ -185,14 +190,18 @@ def markdown(rows: list[dict]) -> str:
 
 def write(rows: list[dict], csv_out, md_out, html_out=None) -> None:
     with open(csv_out, "w", newline="") as f:
-        w = csv.DictWriter(f, COLUMNS, lineterminator="\n")
+        w = csv.DictWriter(f, COLUMNS, lineterminator="\n", extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
     Path(md_out).write_text(markdown(rows) + "\n")
     if html_out:
         rows = sorted(rows, key=lambda r: section_key(r["section"]))
-        Path(html_out).write_text(html.table("Claims ledger", count_line(rows), COLUMNS, rows,
-                                             lambda r: "differs" if r["status"] == DIFFERS else ""))
+        # each claim links to its audit: what `esnap audit CLAIM_ID` prints, less the disk check
+        audits = [(f"{AUDIT}{r['claim_id']}", r["claim_id"],
+                   "\n".join(numbers.claim_head(r) + numbers.format_lineage(r["_lineage"]))) for r in rows]
+        Path(html_out).write_text(html.table("Claims ledger", count_line(rows) + ". Each claim id links to its audit.",
+                                             COLUMNS, rows, lambda r: "differs" if r["status"] == DIFFERS else "",
+                                             anchor=("claim_id", AUDIT), sections=audits))
 
 
 def read(path="results/tables/claims.csv") -> list[dict]:
