@@ -1,0 +1,10 @@
+"""The one error the capture readers raise."""
+
+from __future__ import annotations
+
+
+class CaptureError(ValueError):
+    """An export this package refuses to read: one line, naming the file and the rule broken."""
+
+    def __init__(self, path, rule: str):
+        super().__init__(f"{path}: {rule}")
