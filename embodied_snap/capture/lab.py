@@ -1,0 +1,139 @@
+"""The lab file: how one rig's motion capture and servos map onto the recording format.
+
+One YAML file per rig, written once (docs/examples/lab.yaml), validated against
+schemas/lab.schema.yaml with Snakemake's `validate`, as the config is. After the schema, the
+checks it cannot make: servo ids given twice, axes that are not a proper rotation, a number that is
+not finite, and three markers of one layout on a line. Every refusal is one CaptureError line
+naming the file, the key and the rule.
+
+The lab frame is the format's: Y up, metres, quaternions w, x, y, z (docs/data.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..quat import qmul
+from .errors import CaptureError
+from .rigid import fit_pose
+
+SCHEMA = Path(__file__).resolve().parents[2] / "schemas" / "lab.schema.yaml"
+# lab = R @ capture. z_up (Vicon, Qualisys): a quarter turn about X takes the capture's Z to the
+# lab's Y and keeps the frame right-handed: lab = (x, z, -y).
+AXES = {"y_up": np.eye(3), "z_up": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]])}
+ROTATION_TOL = 1e-6
+# A triangle of markers flatter than this is a line in practice: its rotation about the long side
+# would be set by the capture's sub-millimetre noise, and fit_pose accepts a frame that sees 3.
+MIN_HEIGHT_M = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class Lab:
+    path: Path
+    rotation: np.ndarray  # (3, 3): lab = rotation @ capture
+    units: str | None  # only for an export that does not say its units
+    bodies: dict[str, dict]  # name -> {"rigid_body": name} or {"markers": {label: [x, y, z]}}
+    servos: tuple[int, ...]  # bus id behind servo column 1..9
+    arm: dict  # arm_length_m, tendon_radius_m, end_effector_m
+    clock: dict  # sync ("none", {"column": name} or {"event_time_s": s}), max_drift_ppm
+
+    def to_lab_frame(self, points) -> np.ndarray:
+        """(..., 3) capture coordinates -> lab coordinates."""
+        return np.asarray(points, float) @ self.rotation.T
+
+    def body_pose(self, take, name: str):
+        """(p (n, 3), q (n, 4) w, x, y, z, valid (n,)) of one body in the lab frame, from a Motive
+        Take's rigid body or from the markers of a Motive Take or a C3D MarkerTake."""
+        spec = self.bodies.get(name)
+        if spec is None:
+            raise CaptureError(self.path, f"bodies: no {name!r} (it names {', '.join(self.bodies)})")
+        if "rigid_body" in spec:
+            table = getattr(take, "rigid_bodies", {}).get(spec["rigid_body"])
+            if table is None:
+                raise CaptureError(take.path, f"no rigid body {spec['rigid_body']!r} (the lab file's {name})")
+            q_axes = Rotation.from_matrix(self.rotation).as_quat(scalar_first=True)
+            p = self.to_lab_frame(table[["x", "y", "z"]].to_numpy(float))
+            # body -> lab is (capture -> lab) after (body -> capture); NaN (occluded) stays NaN
+            q = qmul(q_axes, table[["qw", "qx", "qy", "qz"]].to_numpy(float))
+            return p, q, table["valid"].to_numpy(bool)
+        # measured markers only: Motive's body_markers are its solver's idealised ones, not data
+        missing = [lb for lb in spec["markers"] if lb not in take.markers]
+        if missing:
+            raise CaptureError(take.path, f"no marker {missing[0]!r} (the lab file's {name})")
+        tables = [take.markers[lb] for lb in spec["markers"]]
+        observed = np.stack([np.where(t["valid"].to_numpy()[:, None], t[["x", "y", "z"]], np.nan) for t in tables], 1)
+        return fit_pose(list(spec["markers"].values()), self.to_lab_frame(observed))
+
+
+def load_lab(path: str | Path) -> Lab:
+    import yaml
+
+    path = Path(path)
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise CaptureError(path, f"not readable ({e.strerror})") from None
+    except yaml.YAMLError as e:
+        raise CaptureError(path, f"not readable as YAML ({' '.join(str(e).split())})") from None
+    _validate(path, doc)
+    _not_finite(path, doc, "")
+    servos = tuple(int(i) for i in doc["servos"])
+    for col, sid in enumerate(servos, 1):
+        if sid in servos[: col - 1]:
+            first = servos.index(sid) + 1
+            raise CaptureError(path, f"servos: id {sid} is given twice (servo columns {first} and {col})")
+    axes = doc["capture"]["axes"]
+    rotation = AXES[axes] if isinstance(axes, str) else np.array(axes, float)
+    if not np.abs(rotation @ rotation.T - np.eye(3)).max() <= ROTATION_TOL:
+        raise CaptureError(path, f"capture.axes: the rows are not orthonormal (within {ROTATION_TOL:g})")
+    if not abs(np.linalg.det(rotation) - 1) <= ROTATION_TOL:
+        raise CaptureError(path, "capture.axes: determinant -1, a reflection, not a rotation (a left-handed frame?)")
+    for name, spec in doc["bodies"].items():
+        for labels in combinations(spec.get("markers", {}), 3):
+            a, b, c = (np.array(spec["markers"][lb], float) for lb in labels)
+            longest = max(np.linalg.norm(b - a), np.linalg.norm(c - b), np.linalg.norm(a - c))
+            height = np.linalg.norm(np.cross(b - a, c - a)) / longest if longest > 0 else 0.0
+            if height < MIN_HEIGHT_M:
+                raise CaptureError(path, f"bodies.{name}.markers: {', '.join(labels)} lie on one line (within 1 mm): "
+                                   "a frame that sees only them has no rotation about it")
+    return Lab(path=path, rotation=rotation, units=doc["capture"].get("units"), bodies=doc["bodies"],
+               servos=servos, arm=doc["arm"], clock=doc["clock"])
+
+
+def _validate(path, doc):
+    import jsonschema
+    from snakemake.exceptions import WorkflowError
+    from snakemake.utils import validate
+
+    try:
+        validate(doc, str(SCHEMA))
+    except WorkflowError as e:
+        err = e
+        while err is not None and not isinstance(err, jsonschema.ValidationError):
+            err = err.__cause__ or err.__context__  # snakemake raises its error while handling jsonschema's
+        if err is None:
+            raise CaptureError(path, " ".join(str(e).split())) from None
+        # the schema's errorMessage, where it has one: jsonschema's own message prints the whole value
+        rule = err.schema.get("errorMessage") if isinstance(err.schema, dict) else None
+        if isinstance(rule, dict):
+            rule = rule.get(err.validator)
+        where = ".".join(str(k) for k in err.absolute_path)
+        raise CaptureError(path, (f"{where}: " if where else "") + (rule or " ".join(err.message.split()))) from None
+
+
+def _not_finite(path, value, where):
+    # YAML's .nan and .inf are numbers to the schema, and pass its bounds
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _not_finite(path, v, f"{where}.{k}" if where else str(k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            _not_finite(path, v, f"{where}.{i}")
+    elif isinstance(value, float) and not math.isfinite(value):
+        raise CaptureError(path, f"{where}: {value} is not a finite number")

@@ -1,0 +1,241 @@
+"""The lab file (embodied_snap/capture/lab.py, schemas/lab.schema.yaml): a valid one loads, each kind
+of bad one is refused in one line, and its axes and bodies give lab-frame poses.
+
+Expected values are written out by hand (the arithmetic is in the comments), never computed by the
+code under test.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from embodied_snap.capture.errors import CaptureError
+from embodied_snap.capture.lab import load_lab
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "lab.yaml"
+NAN = float("nan")
+
+LAB = {
+    "capture": {"axes": "z_up"},
+    "bodies": {
+        "base": {"rigid_body": "Base"},
+        "s1": {"rigid_body": "S1"},
+        "s2": {"rigid_body": "S2"},
+        "tip": {"markers": {"m1": [0.02, 0.0, 0.0], "m2": [0.0, 0.03, 0.0], "m3": [0.0, 0.0, 0.04]}},
+    },
+    "servos": [11, 12, 13, 21, 22, 23, 31, 32, 33],
+    "arm": {"arm_length_m": 0.73, "tendon_radius_m": [0.037, 0.022, 0.022], "end_effector_m": 0.15},
+    "clock": {"sync": {"column": "sync"}, "max_drift_ppm": 50},
+}
+
+
+def write(tmp_path, edit=None):
+    doc = copy.deepcopy(LAB)
+    if edit:
+        edit(doc)
+    path = tmp_path / "lab.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return path
+
+
+def refused(tmp_path, edit):
+    path = write(tmp_path, edit)
+    with pytest.raises(CaptureError) as e:
+        load_lab(path)
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert msg.startswith(f"{path}: ")
+    return msg[len(f"{path}: "):]
+
+
+def test_a_valid_lab_file_loads(tmp_path):
+    lab = load_lab(write(tmp_path))
+    assert lab.servos == (11, 12, 13, 21, 22, 23, 31, 32, 33)
+    assert lab.units is None
+    assert lab.bodies["base"] == {"rigid_body": "Base"}
+    assert lab.clock == {"sync": {"column": "sync"}, "max_drift_ppm": 50}
+    assert lab.arm["end_effector_m"] == 0.15
+
+
+def test_the_example_lab_file_loads():
+    lab = load_lab(EXAMPLE)
+    assert set(lab.bodies) == {"base", "s1", "s2", "tip", "target"}
+    assert len(lab.servos) == 9
+
+
+def test_a_missing_body(tmp_path):
+    assert refused(tmp_path, lambda d: d["bodies"].pop("tip")) == "bodies: 'tip' is a required property"
+
+
+@pytest.mark.parametrize(
+    "edit, where",
+    [
+        (lambda d: d.update(colour="red"), ""),
+        (lambda d: d["capture"].update(origin=[0, 0, 0]), "capture: "),
+        (lambda d: d["bodies"].update(elbow={"rigid_body": "Elbow"}), "bodies: "),
+        (lambda d: d["bodies"]["base"].update(colour="red"), "bodies.base: "),
+    ],
+)
+def test_an_unknown_key(tmp_path, edit, where):
+    key = refused(tmp_path, edit).removeprefix(where)
+    assert key.startswith("Additional properties are not allowed (") and key.endswith(" was unexpected)")
+
+
+def test_two_markers(tmp_path):
+    msg = refused(tmp_path, lambda d: d["bodies"]["tip"]["markers"].pop("m3"))
+    assert msg == "bodies.tip.markers: needs at least 3 markers (the pose about the line through 2 is undetermined)"
+
+
+@pytest.mark.parametrize(
+    "body, rule",
+    [
+        ({}, "bodies.tip: needs rigid_body or at least 3 markers"),
+        ("Tip", "bodies.tip: needs rigid_body or at least 3 markers"),
+        ({"rigid_body": "Tip", "markers": {"a": [0, 0, 0], "b": [1, 0, 0], "c": [0, 1, 0]}},
+         "bodies.tip: rigid_body or markers, not both"),
+        ({"markers": {"a": [0, 0], "b": [1, 0, 0], "c": [0, 1, 0]}},
+         "bodies.tip.markers.a: a marker is [x, y, z] in the body frame, in metres"),
+        ({"markers": {1: [0, 0, 0], "b": [1, 0, 0], "c": [0, 1, 0]}},
+         "bodies.tip.markers: a marker label is a non-empty string: quote a label YAML reads as a number or boolean"),
+    ],
+)
+def test_a_body_the_schema_refuses(tmp_path, body, rule):
+    assert refused(tmp_path, lambda d: d["bodies"].update(tip=body)) == rule
+
+
+@pytest.mark.parametrize(
+    "edit, rule",
+    [
+        (lambda d: d["capture"].update(axes="x_up"),
+         "capture.axes: y_up, z_up or a 3x3 rotation matrix (three rows of three numbers)"),
+        (lambda d: d["capture"].update(axes=[[1, 0, 0], [0, 1, 0]]),
+         "capture.axes: y_up, z_up or a 3x3 rotation matrix (three rows of three numbers)"),
+        (lambda d: d["servos"].__setitem__(8, 253), "servos.8: 253 is greater than the maximum of 252"),
+        (lambda d: d["servos"].pop(), "servos: [11, 12, 13, 21, 22, 23, 31, 32] is too short"),
+        (lambda d: d["clock"].update(sync="ntp"),
+         "clock.sync: none, {column: <name in the take>} or {event_time_s: <seconds>}"),
+        (lambda d: d["clock"].pop("max_drift_ppm"), "clock: 'max_drift_ppm' is a required property"),
+        (lambda d: d["arm"].pop("arm_length_m"), "arm: 'arm_length_m' is a required property"),
+    ],
+)
+def test_other_schema_rules(tmp_path, edit, rule):
+    assert refused(tmp_path, edit) == rule
+
+
+def test_a_duplicate_servo_id(tmp_path):
+    msg = refused(tmp_path, lambda d: d["servos"].__setitem__(3, 13))
+    assert msg == "servos: id 13 is given twice (servo columns 3 and 4)"
+
+
+def test_a_reflection_is_not_a_rotation(tmp_path):
+    # orthonormal, determinant -1: a capture frame mirrored in Z
+    msg = refused(tmp_path, lambda d: d["capture"].update(axes=[[1, 0, 0], [0, 1, 0], [0, 0, -1]]))
+    assert msg == "capture.axes: determinant -1, a reflection, not a rotation (a left-handed frame?)"
+
+
+def test_a_shear_is_not_a_rotation(tmp_path):
+    # determinant +1 (triangular, ones on the diagonal) but rows not orthonormal
+    msg = refused(tmp_path, lambda d: d["capture"].update(axes=[[1, 0.1, 0], [0, 1, 0], [0, 0, 1]]))
+    assert msg == "capture.axes: the rows are not orthonormal (within 1e-06)"
+
+
+def test_a_rotation_matrix_loads(tmp_path):
+    # the z_up convention written as its matrix
+    lab = load_lab(write(tmp_path, lambda d: d["capture"].update(axes=[[1, 0, 0], [0, 0, 1], [0, -1, 0]])))
+    assert lab.to_lab_frame([1.0, 2.0, 3.0]) == pytest.approx([1.0, 3.0, -2.0])
+
+
+def test_three_collinear_markers(tmp_path):
+    # m1, m2, m4 lie on the x axis; m3 makes the layout as a whole a plane, which does not help a
+    # frame in which m3 is occluded
+    markers = {"m1": [0.0, 0, 0], "m2": [0.05, 0, 0], "m3": [0.0, 0.04, 0], "m4": [0.1, 0, 0]}
+    msg = refused(tmp_path, lambda d: d["bodies"]["tip"].update(markers=markers))
+    assert msg == ("bodies.tip.markers: m1, m2, m4 lie on one line (within 1 mm): "
+                   "a frame that sees only them has no rotation about it")
+
+
+def test_a_number_that_is_not_finite(tmp_path):
+    msg = refused(tmp_path, lambda d: d["arm"].update(arm_length_m=NAN))
+    assert msg == "arm.arm_length_m: nan is not a finite number"
+
+
+def test_not_yaml(tmp_path):
+    path = tmp_path / "lab.yaml"
+    path.write_text("capture: [y_up\n")
+    with pytest.raises(CaptureError, match=r"^.*lab\.yaml: not readable as YAML \(.*\)$"):
+        load_lab(path)
+
+
+def test_to_lab_frame_z_up(tmp_path):
+    lab = load_lab(write(tmp_path))
+    # z_up: lab = (x, z, -y); the capture's up (0, 0, 1) is the lab's (0, 1, 0)
+    lab_points = lab.to_lab_frame([[1.0, 2.0, 3.0], [0.0, 0.0, 1.0]])
+    assert lab_points == pytest.approx(np.array([[1.0, 3.0, -2.0], [0.0, 1.0, 0.0]]))
+
+
+def same_rotation(q, expected):
+    q, expected = np.asarray(q, float), np.asarray(expected, float)
+    return q * np.sign(q @ expected) == pytest.approx(expected, abs=1e-9)  # q and -q are one rotation
+
+
+def markers(rows):
+    xyz = np.array(rows, float)
+    return pd.DataFrame({"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "valid": ~np.isnan(xyz).any(1)})
+
+
+def test_body_pose_from_markers(tmp_path):
+    lab = load_lab(write(tmp_path))
+    # The tip turned 90 deg about the lab's Y, (x, y, z) -> (z, y, -x), at p = (0.1, 0.2, 0.3):
+    # m1 (0.02, 0, 0) -> (0.1, 0.2, 0.28), m2 (0, 0.03, 0) -> (0.1, 0.23, 0.3),
+    # m3 (0, 0, 0.04) -> (0.14, 0.2, 0.3); as a Z-up capture writes them, (x, -z, y) of those.
+    # Frame 1 has m3 occluded: two markers, no pose.
+    take = SimpleNamespace(path=Path("take.c3d"), markers={
+        "m1": markers([[0.1, -0.28, 0.2], [0.1, -0.28, 0.2]]),
+        "m2": markers([[0.1, -0.3, 0.23], [0.1, -0.3, 0.23]]),
+        "m3": markers([[0.14, -0.3, 0.2], [NAN, NAN, NAN]]),
+        "other": markers([[9.0, 9.0, 9.0], [9.0, 9.0, 9.0]]),
+    })
+    p, q, valid = lab.body_pose(take, "tip")
+    assert valid.tolist() == [True, False]
+    assert p[0] == pytest.approx([0.1, 0.2, 0.3], abs=1e-9)
+    assert same_rotation(q[0], [0.7071067811865476, 0.0, 0.7071067811865476, 0.0])  # cos 45, 0, sin 45, 0
+    assert np.isnan(p[1]).all() and np.isnan(q[1]).all()
+
+
+def test_body_pose_from_a_rigid_body(tmp_path):
+    lab = load_lab(write(tmp_path))
+    # frame 0: identity in the capture, so the lab quaternion is the axes' turn, -90 deg about X:
+    #   (cos -45, sin -45, 0, 0); frame 1: 90 deg about the capture's Z (its up), which is
+    #   90 deg about the lab's Y after the axes' turn: (c, 0, s, 0) x (c, -s, 0, 0), c = s = 1/sqrt 2,
+    #   = (0.5, -0.5, 0.5, 0.5); frame 2: occluded (Motive leaves the cells blank)
+    c = 0.7071067811865476
+    body = pd.DataFrame({
+        "x": [1.0, 0.1, NAN], "y": [2.0, 0.2, NAN], "z": [3.0, 0.3, NAN],
+        "qw": [1.0, c, NAN], "qx": [0.0, 0.0, NAN], "qy": [0.0, 0.0, NAN], "qz": [0.0, c, NAN],
+        "valid": [True, True, False],
+    })
+    take = SimpleNamespace(path=Path("take.csv"), rigid_bodies={"S1": body}, markers={})
+    p, q, valid = lab.body_pose(take, "s1")
+    assert valid.tolist() == [True, True, False]
+    assert p[:2] == pytest.approx(np.array([[1.0, 3.0, -2.0], [0.1, 0.3, -0.2]]))
+    assert same_rotation(q[0], [c, -c, 0.0, 0.0])
+    assert same_rotation(q[1], [0.5, -0.5, 0.5, 0.5])
+    assert np.isnan(p[2]).all() and np.isnan(q[2]).all()
+
+
+def test_body_pose_names_what_the_take_lacks(tmp_path):
+    lab = load_lab(write(tmp_path))
+    take = SimpleNamespace(path=Path("take.csv"), rigid_bodies={}, markers={"m1": markers([[0.0, 0, 0]])})
+    with pytest.raises(CaptureError, match=r"^take\.csv: no rigid body 'S1' \(the lab file's s1\)$"):
+        lab.body_pose(take, "s1")
+    with pytest.raises(CaptureError, match=r"^take\.csv: no marker 'm2' \(the lab file's tip\)$"):
+        lab.body_pose(take, "tip")
+    with pytest.raises(CaptureError, match=r"lab\.yaml: bodies: no 'target' \(it names base, s1, s2, tip\)$"):
+        lab.body_pose(take, "target")
