@@ -330,9 +330,11 @@ def _subprocess_trial(man_path, tmp_path, sig, done=lambda bus: True):
     bus = _bus(man).__enter__()
     try:
         env = dict(os.environ, PYTHONPATH=str(ROOT), PYTHONUNBUFFERED="1")  # its lines as they are said
+        # started with SIGINT ignored, as a shell's background job is: the client must stop on it anyway
         proc = subprocess.Popen([sys.executable, "-m", "embodied_snap.cli", "deploy", "--manifest", str(man_path),
                                  "--port", bus.port, "--placement", "2", "--yes", "--out", str(tmp_path)],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
         while bus.now() < 0.4 and proc.poll() is None:
             time.sleep(0.01)
         assert proc.poll() is None, f"the client ended before the signal: {proc.communicate()}"

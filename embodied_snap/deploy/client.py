@@ -444,6 +444,9 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     bus = Bus(port, baud, man["servos"]["ids"], man["servos"]["reply_retries"],
               man["servos"]["reply_timeout_ms"])
     old = signal.signal(signal.SIGTERM, _sigterm)
+    # Ctrl-C stops the arm even when the parent ignores SIGINT (a shell's background job starts
+    # with it ignored, and Python then installs no handler of its own)
+    old_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     cause, log = None, None
     with raised_priority():  # the whole time the arm may move, torque off included
         try:
@@ -459,6 +462,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
             failed = bus.torque_off()
             bus.close()
             signal.signal(signal.SIGTERM, old)
+            signal.signal(signal.SIGINT, old_int)
     result = dict(trial, log=log, cause=cause, torque_off=not failed)
     if cause is not None:
         if out_dir is not None:
