@@ -14,12 +14,13 @@ from __future__ import annotations
 import csv
 import json
 import time
+from collections import Counter
 from pathlib import Path
 
 from ..files import sha256
 from ..sources import RECORDINGS, parse_source, read_key
 from .audit import audit, compact_ids
-from .groups import deployment_dir, load_groups
+from .groups import deployment_dir, group_of, load_groups
 from .records import last_config, load_records, raw_dir_of
 
 LEDGER = "results/tables/claims.csv"
@@ -46,40 +47,36 @@ def _json(path: Path):
         return None
 
 
-def _read_groups(rep: dict, rec: dict | None) -> set[str]:
-    """Groups the artifact's jobs read: the file audit's, and those its own job read under a
-    trial tree the audit does not walk (the deployment's)."""
-    out = {g for s in rep["evidence_sets"].values() for g in s["fed"]}
-    for p in (rec or {}).get("reads") or ():
-        parts = p.split("/")
-        if "groups" in parts[:-1]:
-            i = parts.index("groups")
-            if i + 1 < len(parts) - 1:
-                out.add(parts[i + 1])
-    return out
+class Numbers:
+    """The lineage of a run's numbers. The group index, each artifact's file audit and its fit's
+    recordings are read once and shared by every number read from that artifact (the ledger's
+    161 rows come from a few dozen artifacts). `check_disk`: the stale check, as `esnap audit`."""
 
+    def __init__(self, root=".", records: dict | None = None, check_disk: bool = False):
+        self.root = Path(root)
+        self.records = load_records(self.root) if records is None else records
+        self.check_disk = check_disk
+        self.raw = raw_dir_of(last_config(self.root, self.records))
+        self.index = _index(self.root, self.raw)
+        self.totals = Counter(self.index.values())
+        self._artifacts: dict[str, dict] = {}
 
-def lineage(source: str, root=".", records: dict | None = None, audits: dict | None = None,
-            check_disk: bool = False) -> dict:
-    """The artifacts, keys, recordings (by evidence set) and job chains behind one `source` cell.
-    `audits`: a cache of file audits shared across rows (the ledger's)."""
-    root = Path(root)
-    records = load_records(root) if records is None else records
-    audits = {} if audits is None else audits
-    raw = raw_dir_of(last_config(root, records))
-    index = _index(root, raw)
-    keys: dict[str, list[str]] = {}
-    for art, key in parse_source(source):
-        keys.setdefault(art, []).append(key)
-    arts, used_all = [], {}
-    for art, ks in keys.items():
-        if (art, check_disk) not in audits:
-            audits[art, check_disk] = audit(art, root, check_disk=check_disk, records=records)
-        rep = audits[art, check_disk]
-        value = _json(root / art)
+    def _read_groups(self, rep: dict, art: str) -> set[str]:
+        """Groups the artifact's jobs read: the file audit's, and those its own job read in the
+        deployment's trial tree, which the audit does not walk."""
+        trials = deployment_dir(self.raw)
+        out = {g for s in rep["evidence_sets"].values() for g in s["fed"]}
+        return out | {go[0] for p in (self.records.get(art) or {}).get("reads") or () if (go := group_of(p, trials))}
+
+    def artifact(self, art: str) -> dict:
+        """One artifact's recordings (its fit's, or every group its jobs read) and job chain."""
+        if art in self._artifacts:
+            return self._artifacts[art]
+        rep = audit(art, self.root, check_disk=self.check_disk, records=self.records)
+        value = _json(self.root / art)
         rec = value.get(RECORDINGS) if isinstance(value, dict) else None
         if rec is not None:
-            read = _read_groups(rep, records.get(art))
+            read = self._read_groups(rep, art)
             unread = [g for g in rec["used"] if g not in read]
             if unread:
                 raise NumberError(f"{art}: its recordings name group {unread[0]}, which its jobs never read "
@@ -88,20 +85,28 @@ def lineage(source: str, root=".", records: dict | None = None, audits: dict | N
         else:
             used = [g for s in rep["evidence_sets"].values() for g in s["fed"]]
             dropped, how = {}, "every group its jobs read"
-        for g in used:
-            used_all.setdefault(g, art)
-        arts.append(dict(path=art, keys=ks, how=how, used=sorted(used), dropped=dropped,
-                         record=rep["record"], stale_files=rep["stale_files"],
-                         missing_records=rep["missing_records"], jobs=rep["jobs"]))
-    totals: dict[str, int] = {}
-    for es in index.values():
-        totals[es] = totals.get(es, 0) + 1
-    sets: dict[str, dict] = {}
-    for g in sorted(used_all):
-        es = index.get(g, "unknown (in no index.csv)")
-        sets.setdefault(es, dict(used=[], n_total=totals.get(es, 0)))["used"].append(g)
-    return dict(source=source, artifacts=arts,
-                evidence_sets=dict(sorted(sets.items(), key=lambda kv: (-len(kv[1]["used"]), kv[0]))))
+        self._artifacts[art] = dict(path=art, how=how, used=sorted(used), dropped=dropped, record=rep["record"],
+                                    stale_files=rep["stale_files"], missing_records=rep["missing_records"],
+                                    jobs=rep["jobs"])
+        return self._artifacts[art]
+
+    def lineage(self, source: str) -> dict:
+        """The artifacts, keys, recordings (by evidence set) and job chains behind one `source` cell."""
+        keys: dict[str, list[str]] = {}
+        for art, key in parse_source(source):
+            keys.setdefault(art, []).append(key)
+        arts = [dict(self.artifact(art), keys=ks) for art, ks in keys.items()]
+        sets: dict[str, dict] = {}
+        for g in sorted({g for a in arts for g in a["used"]}):
+            es = self.index.get(g, "unknown (in no index.csv)")
+            sets.setdefault(es, dict(used=[], n_total=self.totals.get(es, 0)))["used"].append(g)
+        return dict(source=source, artifacts=arts,
+                    evidence_sets=dict(sorted(sets.items(), key=lambda kv: (-len(kv[1]["used"]), kv[0]))))
+
+
+def lineage(source: str, root=".") -> dict:
+    """One number's lineage (Numbers(root).lineage, for a single source)."""
+    return Numbers(root).lineage(source)
 
 
 def fed_by(lin: dict) -> str:
@@ -159,7 +164,7 @@ def audit_number(what: str, root=".") -> dict:
             raise NumberError(f"{what}: no such claim in {LEDGER} (a claim id, or FILE:KEY)")
         row = rows[0]
         source, ours, claims = row["source"], row["ours"], [what]
-    lin = lineage(source, root, records, check_disk=True)
+    lin = Numbers(root, records, check_disk=True).lineage(source)
     stale = []
     for a in lin["artifacts"]:
         stale += [f"{x['path']}: {x['why']}" for x in a["stale_files"]]

@@ -83,11 +83,6 @@ def agrees(paper, ours, tol: float) -> bool | None:
     return all(_near(v, paper, tol) for v in vals)
 
 
-def claims_files(root=".") -> list[str]:
-    """Every stage's claims table on disk (results/<stage>/claims.csv), sorted."""
-    return sorted(p.relative_to(root).as_posix() for p in Path(root).glob("results/*/claims.csv"))
-
-
 def _fed_by(*reps: dict) -> str:
     """Evidence sets, groups fed / total and split roles behind one or more audits, merged."""
     sets: dict[str, dict] = {}
@@ -120,7 +115,7 @@ def ledger(files, root=".") -> list[dict]:
     """The rows of results/tables/claims.csv, in the order of `files` and of each table."""
     root = Path(root)
     records = load_records(root)
-    audits: dict = {}  # one file audit per artifact, shared by its rows
+    nums = numbers.Numbers(root, records)  # each artifact audited once, for all its rows
     rows = []
     for f in files:
         stage = Path(f).parent.name
@@ -136,7 +131,7 @@ def ledger(files, root=".") -> list[dict]:
                 if not src or bad:
                     raise ValueError(f"{f}: claim {r['claim_id']}: " + (f"source {bad[0]} is no input of its job" if bad
                                      else "no source") + " (rule: each claim names the artifact:key it was read from)")
-                lin = numbers.lineage(src, root, records, audits)
+                lin = nums.lineage(src)
                 try:
                     p, o = parse(r["paper"]), parse(r["ours"])
                 except ValueError as e:
