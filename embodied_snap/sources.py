@@ -109,27 +109,26 @@ def trace(ours, artifacts: dict) -> tuple[dict, dict]:
     return dict(out), {cid: source_text(s) for cid, s in out.sources.items()}
 
 
+def _merge_once(keys: set[tuple]) -> set[tuple] | None:
+    """The first set of keys equal but in one position (the lowest such position), merged as `*`
+    there; None when there is none."""
+    for i in range(max((len(k) for k in keys), default=0)):
+        like: dict[tuple, set] = {}
+        for k in sorted(keys):
+            if len(k) > i:
+                like.setdefault(k[:i] + ("*",) + k[i + 1:], set()).add(k)
+        for pattern, ks in like.items():
+            if len(ks) > 1:
+                return (keys - ks) | {pattern}
+    return None
+
+
 def _merge(keys: list[tuple]) -> list[tuple]:
     """Keys equal but in one position merged as `*` there (every seed's value, every rule's)."""
-    keys = sorted(set(keys))
-    changed = True
-    while changed:
-        changed = False
-        for i in range(max((len(k) for k in keys), default=0)):
-            groups: dict[tuple, set] = {}
-            for k in keys:
-                if len(k) > i:
-                    groups.setdefault(k[:i] + ("\0",) + k[i + 1:], set()).add(k[i])
-            for pat, vals in groups.items():
-                if len(vals) > 1:
-                    keys = sorted({k for k in keys if not (len(k) == len(pat) and k[:i] == pat[:i]
-                                                           and k[i + 1:] == pat[i + 1:])}
-                                  | {pat[:i] + ("*",) + pat[i + 1:]})
-                    changed = True
-                    break
-            if changed:
-                break
-    return keys
+    keys = set(keys)
+    while (merged := _merge_once(keys)) is not None:
+        keys = merged
+    return sorted(keys)
 
 
 def source_text(leaves) -> str:

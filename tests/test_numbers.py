@@ -41,6 +41,8 @@ def test_each_claim_names_the_leaves_it_read_and_only_those():
 def test_keys_that_differ_in_one_place_merge_and_read_back():
     leaves = [("a.json", ("seeds", s, "at_s_mm", "0.3")) for s in ("0", "1", "2")] + [("a.json", ("n",))]
     assert source_text(leaves) == "a.json:n a.json:seeds/*/at_s_mm/0.3"
+    assert source_text([("b.json", ("x", "0")), ("b.json", ("x", "1"))]) == "b.json:x/*"  # two are enough
+    assert source_text([("b.json", ("x", "0")), ("b.json", ("y", "1"))]) == "b.json:x/0 b.json:y/1"
     doc = {"seeds": {"0": {"at_s_mm": {"0.3": 4.0}}, "1": {"at_s_mm": {"0.3": 5.0}}}, "l": [7, 8]}
     assert read_key(doc, "seeds/*/at_s_mm/0.3") == [4.0, 5.0] and read_key(doc, "l/1") == 8
     with pytest.raises(KeyError):
