@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from .policy.architectures import seeds_error
+from .schemacheck import violation
 
 SCHEMA = Path(__file__).resolve().parent.parent / "schemas" / "config.schema.yaml"
 DEFAULT = "config.yaml"
@@ -41,29 +42,11 @@ def overrides(entries) -> dict:
         raise ConfigError(f"--config: {e}") from None
 
 
-def schema_error(e: Exception) -> str:
-    """One line for a failed `snakemake.utils.validate` of the config: the key path and the rule
-    (jsonschema's message), e.g. `config: budget: 'x' is not one of ['paper', 'quick', 'smoke']`."""
-    import jsonschema
-
-    err = e
-    while err is not None and not isinstance(err, jsonschema.ValidationError):
-        err = err.__cause__ or err.__context__  # snakemake raises its error while handling jsonschema's
-    if err is None:
-        return f"config: {' '.join(str(e).split())}"
-    where = ".".join(str(k) for k in err.absolute_path)
-    return "config: " + (f"{where}: " if where else "") + " ".join(err.message.split())
-
-
 def validate(cfg: dict) -> dict:
     """`cfg` checked against the schema as the Snakefile checks it (the schema has no defaults to fill in)."""
-    from snakemake.exceptions import WorkflowError
-    from snakemake.utils import validate as smk_validate
-
-    try:
-        smk_validate(cfg, str(SCHEMA))
-    except WorkflowError as e:
-        raise ConfigError(schema_error(e)) from None
+    err = violation(cfg, SCHEMA)
+    if err:
+        raise ConfigError(f"config: {err}")
     err = names_error(cfg)
     if err:
         raise ConfigError(err)

@@ -20,6 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..quat import qmul
+from ..schemacheck import violation
 from .errors import CaptureError
 from .rigid import fit_pose
 
@@ -81,7 +82,9 @@ def load_lab(path: str | Path) -> Lab:
         raise CaptureError(path, f"not readable ({e.strerror})") from None
     except yaml.YAMLError as e:
         raise CaptureError(path, f"not readable as YAML ({' '.join(str(e).split())})") from None
-    _validate(path, doc)
+    err = violation(doc, SCHEMA)
+    if err:
+        raise CaptureError(path, err)
     _not_finite(path, doc, "")
     servos = tuple(int(i) for i in doc["servos"])
     for col, sid in enumerate(servos, 1):
@@ -104,27 +107,6 @@ def load_lab(path: str | Path) -> Lab:
                                    "a frame that sees only them has no rotation about it")
     return Lab(path=path, rotation=rotation, units=doc["capture"].get("units"), bodies=doc["bodies"],
                servos=servos, arm=doc["arm"], clock=doc["clock"])
-
-
-def _validate(path, doc):
-    import jsonschema
-    from snakemake.exceptions import WorkflowError
-    from snakemake.utils import validate
-
-    try:
-        validate(doc, str(SCHEMA))
-    except WorkflowError as e:
-        err = e
-        while err is not None and not isinstance(err, jsonschema.ValidationError):
-            err = err.__cause__ or err.__context__  # snakemake raises its error while handling jsonschema's
-        if err is None:
-            raise CaptureError(path, " ".join(str(e).split())) from None
-        # the schema's errorMessage, where it has one: jsonschema's own message prints the whole value
-        rule = err.schema.get("errorMessage") if isinstance(err.schema, dict) else None
-        if isinstance(rule, dict):
-            rule = rule.get(err.validator)
-        where = ".".join(str(k) for k in err.absolute_path)
-        raise CaptureError(path, (f"{where}: " if where else "") + (rule or " ".join(err.message.split()))) from None
 
 
 def _not_finite(path, value, where):
