@@ -9,16 +9,16 @@ configfile: "config.yaml"
 
 
 # A config that breaks the schema stops here in one line naming the key and the rule, as `esnap`
-# says it (embodied_snap/runconfig.py), not with the whole schema (nor Snakemake's frame around it).
+# says it (embodied_snap/schemacheck.py), not with the whole schema (nor Snakemake's frame around it).
 try:
     validate(config, "schemas/config.schema.yaml")
 except WorkflowError as e:
     import sys
 
     sys.path.insert(0, workflow.basedir)
-    from embodied_snap.runconfig import schema_error
+    from embodied_snap.schemacheck import error_line
 
-    sys.exit(f"error: {schema_error(e)}")
+    sys.exit(f"error: config: {error_line(e)}")
 
 
 include: "rules/common.smk"
