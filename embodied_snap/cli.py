@@ -153,20 +153,31 @@ def _fits_run(a, cfg: dict | None) -> None:
 
 
 def cmd_validate(a) -> int:
-    """Exactly what the workflow checks before its DAG (verdicts.check_tree): one line on error."""
+    """Exactly what the workflow checks before its DAG (verdicts.check_tree): one line on error.
+    --partial: the same gate on a tree holding part of the corpus, and which sets it lacks."""
     from .plan import PlanError
     from .validate import RecordingError
-    from .verdicts import check_tree
+    from .verdicts import check_tree, coverage
 
     cfg = _tree_config(a)
     _fits_tree(a, cfg)
     try:
-        plan = check_tree(cfg, cfg["raw_data"]["dir"])
+        plan = check_tree(cfg, cfg["raw_data"]["dir"], partial=a.partial)
     except (RecordingError, PlanError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 1
     ex = plan.attrs["excluded"]
-    print(f"{len(plan)} groups valid" + (f"; excluded: {', '.join(f'{g} ({r})' for g, r in ex.items())}" if ex else ""))
+    line = f"{len(plan)} groups valid"
+    if a.partial:
+        def short(rules):  # a stage's rules as one entry: policy_* (6)
+            stages = [r.split("_")[0] for r in rules]
+            out = [f"{p}_* ({stages.count(p)})" if stages.count(p) > 4 else r for r, p in zip(rules, stages)]
+            return ", ".join(dict.fromkeys(out))
+
+        present, missing = coverage(cfg, plan)
+        line += f" (partial corpus: {', '.join(f'{es} {n}' for es, n in present.items()) or 'no groups'})"
+        line += f"; missing: {'; '.join(f'{es} (needed by {short(r)})' for es, r in missing.items()) or 'none'}"
+    print(line + (f"; excluded: {', '.join(f'{g} ({r})' for g, r in ex.items())}" if ex else ""))
     return 0
 
 
@@ -194,6 +205,40 @@ def cmd_seal(a) -> int:
     was = sorted(_json.loads(path.read_text())["groups"]) if path.exists() else []
     sealed.seal(raw, plan, "esnap seal")
     print(f"sealed set: {len(ids)} groups: {', '.join(ids)}; was: {', '.join(was) or 'none'}; recorded in {path}")
+    return 0
+
+
+def cmd_import(a) -> int:
+    """A capture session's exports into the recording tree, through the gate; all takes or none."""
+    from .capture.errors import CaptureError
+    from .capture.importer import ImportRefused, import_session
+    from .capture.lab import load_lab
+
+    cfg = _config(a)
+    session, lab_path = _file(a.session, "SESSION"), _file(a.lab, "--lab")
+    raw = _path(a.raw if a.raw is not None else cfg["raw_data"]["dir"], "--raw")
+    if raw.exists() and not raw.is_dir():
+        raise UsageError(f"--raw {raw}: not a directory")
+    try:
+        lab = load_lab(lab_path)
+        progress = None
+        if not a.quiet:
+            from tqdm import tqdm
+
+            def progress(specs):
+                return tqdm(specs, desc="import", unit="take", file=sys.stderr)
+
+        rows = import_session(session, lab, raw, cfg, progress=progress)
+    except (CaptureError, ImportRefused) as e:
+        print(f"error: {_one_line(e)} (nothing written to {raw})", file=sys.stderr)
+        return 1
+    for k, want in (("arm_length_m", cfg["rig"]["arm_length_m"]), ("end_effector_m", cfg["rig"]["end_effector_m"]),
+                    ("tendon_radius_m", cfg["rig"]["tendon_radius_m"])):
+        if lab.arm[k] != want:
+            print(f"note: {lab_path}: arm.{k} is {lab.arm[k]} and the config's rig.{k} {want}: the fits use the "
+                  f"config's; set rig.{k} in config.yaml to the lab's", file=sys.stderr)
+    ids = [r["group_id"] for r in rows]
+    print(f"{len(rows)} takes imported into {raw}: {', '.join(ids[:3])}{', ...' if len(ids) > 3 else ''}")
     return 0
 
 
@@ -488,7 +533,8 @@ def parser() -> argparse.ArgumentParser:
     t.set_defaults(fn=cmd_twin)
 
     for name, fn, hlp in (
-        ("validate", cmd_validate, "check a recording tree through the gate, as the workflow does before its DAG"),
+        ("validate", cmd_validate, "check a recording tree through the gate, as the workflow does before its DAG "
+                                   "(--partial: a tree holding part of the corpus, e.g. one session)"),
         ("seal", cmd_seal, "re-seal: record the current sealed test set (after a deliberate change to it)"),
     ):
         v = sub.add_parser(name, help=hlp)
@@ -497,7 +543,23 @@ def parser() -> argparse.ArgumentParser:
         v.add_argument("--source", choices=["rig", "twin"], default="rig" if name == "validate" else None,
                        help="plan from index.csv (rig) or from the budget (twin); seal: default from config")
         v.add_argument("--exclude", action="append", help="leave this group out, as raw_data.exclude (repeatable)")
+        if name == "validate":
+            v.add_argument("--partial", action="store_true",
+                           help="the tree holds part of the corpus (a session): every group through the same "
+                                "gate, no split drawn (no split-size rule), the sealed groups it holds against "
+                                "sealed.json; says which evidence sets are missing and what needs them. "
+                                "Without it the corpus is complete, as the workflow needs it")
         v.set_defaults(fn=fn)
+
+    im = sub.add_parser("import", help="a capture session's exports (Motive CSV, C3D) and servo logs into the "
+                                       "recording tree, one group per take, through the gate")
+    im.add_argument("session", metavar="SESSION", help="the session file: which take is which group (docs/data.md)")
+    im.add_argument("--lab", required=True,
+                    help="the lab file: bodies, axes, servo ids, clock (docs/examples/lab.yaml)")
+    im.add_argument("--raw", help="recording tree to add the groups to (default: config raw_data.dir)")
+    im.add_argument("--quiet", action="store_true", help="no progress bar")
+    _config_args(im, "default: config.yaml; its gate:, resample: and characterize:")
+    im.set_defaults(fn=cmd_import)
 
     au = sub.add_parser("audit", help="which recordings fed RESULT (a file, a claim id or FILE:KEY), which never "
                                       "did, and whether it is stale")

@@ -55,18 +55,24 @@ def rig_plan(index_csv: str | Path, pattern: str | None = None) -> pd.DataFrame:
         raise PlanError(str(e)) from None
 
 
-def assign_roles(groups: pd.DataFrame, n_validation: int, seed: int) -> pd.DataFrame:
+def assign_roles(groups: pd.DataFrame, n_validation: int, seed: int, split: bool = True) -> pd.DataFrame:
     """Add `role`: the dynamics corpus is split by acquisition group (paper IV-A, 440/78/20).
 
     Sealed = the sealed category; `n_validation` of the rest are drawn with `seed`; the remainder
     trains. Other evidence sets get their own name as role. Depends on the group list alone, so
-    changing a recording never moves a group between splits.
+    changing a recording never moves a group between splits. `split=False` (a partial corpus,
+    `esnap validate --partial`): no split is drawn, since one drawn from part of the group list
+    is not the run's; the sealed category is still `sealed`, the other dynamics groups keep
+    `dynamics` as role, and the split-size rule does not apply.
     """
     import numpy as np
 
     g = groups.copy()
     g["role"] = g.evidence_set
     dyn = g.evidence_set == "dynamics"
+    if not split:
+        g.loc[dyn & (g.category == "sealed"), "role"] = "sealed"
+        return g
     g.loc[dyn, "role"] = "train"
     g.loc[dyn & (g.category == "sealed"), "role"] = "sealed"
     pool = g[dyn & (g.category != "sealed")].group_id.sort_values().to_numpy()
@@ -119,13 +125,14 @@ def exclusions(config: dict) -> dict[str, str]:
     return {str(g): str(r) for g, r in ex.items()}
 
 
-def load_plan(config: dict, raw_dir: str | Path | None = None) -> pd.DataFrame:
+def load_plan(config: dict, raw_dir: str | Path | None = None, partial: bool = False) -> pd.DataFrame:
     """The group table of this run: group_id, evidence_set, category, session, role, shard.
 
     Checked before any DAG exists: index.csv (rig) or its agreement with the budget (twin),
     every folder under groups/ is a listed group, and excluded ids exist. Excluded groups keep
     their role and shard name (so no other group moves) and are then left out; the table's
-    `attrs["excluded"]` says which, and why.
+    `attrs["excluded"]` says which, and why. `partial`: the tree is part of the corpus (`esnap
+    validate --partial`): the same checks, but the dynamics corpus is not split (assign_roles).
     """
     from .validate import Limits, check_folders
 
@@ -147,7 +154,7 @@ def load_plan(config: dict, raw_dir: str | Path | None = None) -> pd.DataFrame:
         raise PlanError(
             f"config raw_data.exclude: group {unknown[0]}: not a group of this run (rule: exclude names groups)"
         )
-    groups = assign_roles(groups, b["split"]["validation"], config["seed"])
+    groups = assign_roles(groups, b["split"]["validation"], config["seed"], split=not partial)
     plan = shard(groups, b["shard_size"])
     plan = plan[~plan.group_id.isin(list(excluded))].reset_index(drop=True)
     plan.attrs["excluded"] = excluded

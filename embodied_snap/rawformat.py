@@ -18,6 +18,13 @@ import pandas as pd
 from .files import write_atomic
 
 FORMAT_VERSION = 1
+# Mocap may be recorded at any constant rate in this range (Hz, both ends included): the gate reads
+# the rate off the recording's own timestamps (rawschema, rule MOCAP_RATE_RULE), and nothing
+# downstream assumes one rate.
+MOCAP_HZ_RANGE = (100.0, 500.0)
+MOCAP_RATE_RULE = f"mocap rate constant, {MOCAP_HZ_RANGE[0]:g}-{MOCAP_HZ_RANGE[1]:g} Hz"
+# The simulated rig's capture rate (twin/mocap.py, the tests' fake rig): what it records, not
+# what the format requires. The gate and the pipeline never read it.
 MOCAP_HZ = 240.0
 SERVO_HZ = 100.0
 TICKS_PER_REV = 4096

@@ -24,7 +24,8 @@ from .rawformat import (
     CATEGORIES,
     EVIDENCE_SETS,
     INDEX_COLUMNS,
-    MOCAP_HZ,
+    MOCAP_HZ_RANGE,
+    MOCAP_RATE_RULE,
     POSE_FIELDS,
     SERVO_HZ,
     SERVO_IDS,
@@ -40,6 +41,9 @@ MAX_ABS_POSITION_M = 5.0
 QUAT_NORM_TOL = 1e-3
 # Mocap is hardware-clocked (tight); the servo sync-read loop is jittered (loose).
 MOCAP_RATE_TOL = 0.01
+# The ends of MOCAP_HZ_RANGE are included up to float round-off of the timestamps (a relative
+# 1e-6 of the rate: a 100 Hz clock counted from t ~ 1e7 s still reads 100 Hz).
+_RANGE_ROUNDOFF = 1e-6
 SERVO_RATE_TOL = 0.3
 # XM430-W350-R in extended position mode: +-256 revolutions of 4096 ticks.
 TICK_LIMIT = 1_048_575
@@ -76,6 +80,48 @@ def _rate_check(hz: float, tol: float, name: str) -> pa.Check:
     )
 
 
+def _mocap_rate_in_range(t: np.ndarray, hz_range=MOCAP_HZ_RANGE) -> bool:
+    """The rate the recording's own clock gives, 1 / median interval, lies in hz_range (Hz)."""
+    if len(t) < 2:
+        return False
+    m = float(np.median(np.diff(t)))
+    lo, hi = hz_range
+    return bool(m > 0 and lo * (1 - _RANGE_ROUNDOFF) <= 1.0 / m <= hi * (1 + _RANGE_ROUNDOFF))
+
+
+def _mocap_intervals_constant(t: np.ndarray, tol: float = MOCAP_RATE_TOL) -> bool:
+    """A constant time base: every interval is a whole number k >= 1 of the median interval m,
+    to within tol * m. k > 1 is rows missing (a hole, bounded in seconds by the gate's hole rule),
+    not a change of rate; anything else (jitter, a rate that changes) is refused."""
+    if len(t) < 2:
+        return False
+    dt = np.diff(t)
+    m = np.median(dt)
+    if not m > 0:  # NaN included
+        return False
+    with np.errstate(invalid="ignore", over="ignore"):  # an inf interval is refused, quietly
+        k = np.maximum(np.rint(dt / m), 1.0)
+        return bool((np.abs(dt - k * m) <= tol * m).all())
+
+
+def _mocap_rate_checks() -> list[pa.Check]:
+    """The mocap time base (rule MOCAP_RATE_RULE): its rate in range and its intervals constant."""
+    lo, hi = MOCAP_HZ_RANGE
+    return [
+        pa.Check(
+            lambda df: _mocap_rate_in_range(df["t"].to_numpy()),
+            name=MOCAP_RATE_RULE,
+            error=f"median sample interval is not 1/{hi:g}..1/{lo:g} s (a rate of {lo:g}-{hi:g} Hz)",
+        ),
+        pa.Check(
+            lambda df: _mocap_intervals_constant(df["t"].to_numpy()),
+            name=MOCAP_RATE_RULE,
+            error=f"sample intervals not constant: one is not a whole number of the median interval "
+            f"(+-{MOCAP_RATE_TOL:.0%} of it)",
+        ),
+    ]
+
+
 def _body_checks(b: str) -> list[pa.Check]:
     pos = [f"{b}_{f}" for f in POSE_FIELDS[:3]]
     quat = [f"{b}_{f}" for f in POSE_FIELDS[3:]]
@@ -103,7 +149,7 @@ def _mocap_schema() -> pa.DataFrameSchema:
             in_m = [_IN_METRES] if f in "xyz" else []
             cols[f"{b}_{f}"] = pa.Column("float64", in_m, nullable=True)
         cols[f"{b}_valid"] = pa.Column("bool")
-    checks = [_rate_check(MOCAP_HZ, MOCAP_RATE_TOL, f"mocap rate {MOCAP_HZ:g} Hz")]
+    checks = _mocap_rate_checks()
     for b in BODIES:
         checks += _body_checks(b)
     assert list(cols) == mocap_columns()
@@ -275,7 +321,8 @@ def _mocap_passes(df: pd.DataFrame) -> bool:
     if list(df.columns) != mocap_columns() or list(df.dtypes) != _MOCAP_DTYPES:
         return False
     a = df.to_numpy(dtype=np.float64)  # one pass; flags become exactly 0.0 and 1.0
-    if not _sorted_finite_t(a[:, 0], MOCAP_HZ, MOCAP_RATE_TOL):
+    t = a[:, 0]
+    if not (np.isfinite(t).all() and _mocap_rate_in_range(t) and _mocap_intervals_constant(t)):
         return False
     body = a[:, 1:].reshape(len(a), len(BODIES), len(POSE_FIELDS) + 1)  # pose fields, then valid
     if not _within(body[:, :, :3], MAX_ABS_POSITION_M):

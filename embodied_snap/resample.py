@@ -65,7 +65,7 @@ def _track(mocap: dict, body: str, tg: np.ndarray, max_gap_s: float, path, gid: 
             f"recording passed the gate (mocap dropout <= {max_gap_s:g} s)",
         )
     # Bracketing valid samples and weights, shared by positions (lerp) and quaternions (nlerp;
-    # at 240 Hz neighbours are so close that nlerp and slerp agree to round-off).
+    # at mocap rates neighbours are so close that nlerp and slerp agree to far below noise).
     i = np.clip(np.searchsorted(tv, tg, side="right") - 1, 0, len(tv) - 2)
     w = np.clip((tg - tv[i]) / (tv[i + 1] - tv[i]), 0.0, 1.0)[:, None]
     p = pos[i] * (1 - w) + pos[i + 1] * w

@@ -77,27 +77,42 @@ def index_rows(raw_dir, plan, pattern: str) -> dict:
     return rows
 
 
-def gate_tree(config: dict, raw_dir, cache=None, recorded=None):
+def gate_tree(config: dict, raw_dir, cache=None, recorded=None, partial: bool = False):
     """The gate before any DAG, one function for the workflow (rules/common.smk) and `esnap
     validate` (check_tree), with the same inputs whatever the source: the plan (index.csv, ids,
     folders, exclusions), every recorded group not excluded against its index.csv row (row
     counts included), then the sealed set against its record. `recorded(shard)` says whether a
     shard is on disk yet (the simulated rig records during the run; the workflow judges the rest
-    when its acquisition completes); None: every shard. Returns (plan, verdicts)."""
+    when its acquisition completes); None: every shard. `partial` (`esnap validate --partial`, a
+    tree holding part of the corpus): the same gate on every group, without the split (and its
+    size rule), and the sealed groups the tree holds against their record. Returns (plan, verdicts)."""
     from . import sealed
     from .plan import load_plan
 
-    plan = load_plan(config, raw_dir)
+    plan = load_plan(config, raw_dir, partial=partial)
     limits = Limits.from_config(config)
     verdicts = Verdicts(raw_dir, limits, index_rows(raw_dir, plan, limits.group_id_pattern), cache)
     on_disk = plan if recorded is None else plan[[bool(recorded(s)) for s in plan.shard]]
     verdicts.check(on_disk.group_id)
     if recorded is None or all(recorded(s) for s in plan[plan.role == "sealed"].shard.unique()):
-        sealed.check(raw_dir, plan)
+        sealed.check(raw_dir, plan, partial=partial)
     return plan, verdicts
 
 
-def check_tree(config: dict, raw_dir):
+def check_tree(config: dict, raw_dir, partial: bool = False):
     """`esnap validate`: exactly what the workflow checks before its DAG (gate_tree), on every
-    group. Returns the plan."""
-    return gate_tree(config, raw_dir)[0]
+    group; `partial`: of a tree holding part of the corpus (gate_tree). Returns the plan."""
+    return gate_tree(config, raw_dir, partial=partial)[0]
+
+
+def coverage(config: dict, plan) -> tuple[dict[str, int], dict[str, list[str]]]:
+    """Which evidence sets the plan holds (groups per set, in plan order) and which of those the
+    budget asks for it lacks, each with the rules that need it (lineage.policy.needs)."""
+    from .lineage.policy import needs
+    from .rawformat import EVIDENCE_SETS
+
+    counts = plan.evidence_set.value_counts()
+    present = {es: int(counts[es]) for es in EVIDENCE_SETS if es in counts}
+    asked = config["budgets"][config["budget"]]["groups"]
+    missing = {es: needs(es) for es in EVIDENCE_SETS if es in asked and es not in present}
+    return present, missing

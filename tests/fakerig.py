@@ -2,7 +2,7 @@
 
 Kinematics of a hanging three-section arm in closed form (constant bend direction `phi`,
 section angles that sway and, optionally, snap), so a test knows the exact base-frame state
-the resampler must recover. 240 Hz mocap with a few short dropouts (NaN while invalid), a
+the resampler must recover. 240 Hz mocap (`mocap_hz` for another rate) with a few short dropouts (NaN while invalid), a
 jittered ~100 Hz servo log with step goals and a first-order present position. Seeded, so
 every call writes the same bytes. Rotations use quaternion products, independent of the
 matrix code in resample.py that the tests check.
@@ -29,8 +29,9 @@ from embodied_snap.rawformat import (
 # S1, S2, S3 + the 150 mm end effector (paper section II), metres.
 LENGTHS = (0.324, 0.230, 0.176 + 0.150)
 BASE_POS = (0.12, 1.65, -0.30)
-# (body, start time after t0 [s], samples lost): short dropouts, all bridged at max_gap_s=0.1;
-# the target's is long on purpose (the target is not part of x_t).
+# (body, start time after t0 [s], samples lost at 240 Hz): short dropouts, all bridged at
+# max_gap_s=0.1; the target's is long on purpose (the target is not part of x_t). At another
+# mocap rate a dropout loses the samples of about the same span in seconds.
 DROPOUTS = (("tip", 1.0, 6), ("s2", 2.5, 12), ("base", 4.0, 3), ("target", 3.0, 60))
 
 
@@ -98,7 +99,8 @@ def expected_state(t, phi=0.7, snap_at=3.0, static=False):
 
 
 def make_mocap(
-    t, base_pos=BASE_POS, base_quat=BASE_QUAT, dropouts=DROPOUTS, phi=0.7, snap_at=3.0, static=False
+    t, base_pos=BASE_POS, base_quat=BASE_QUAT, dropouts=DROPOUTS, phi=0.7, snap_at=3.0, static=False,
+    hz=MOCAP_HZ,
 ):
     n = len(t)
     bq = np.tile(np.asarray(base_quat, float), (n, 1))
@@ -112,8 +114,8 @@ def make_mocap(
         valid = np.ones(n, bool)
         for b, start, k in dropouts:
             if b == body:
-                i = int(round(start * MOCAP_HZ))
-                valid[i : i + k] = False
+                i = int(round(start * hz))
+                valid[i : i + int(round(k * hz / MOCAP_HZ))] = False
         p, q = p.copy(), q.copy()
         p[~valid], q[~valid] = np.nan, np.nan  # the exporter writes NaN where tracking was lost
         for j, f in enumerate("xyz"):
@@ -160,11 +162,12 @@ def write_fake_group(
     duration_s=6.0,
     seed=0,
     t0=12.5,
+    mocap_hz=MOCAP_HZ,
     **kinematics,
 ) -> dict:
-    """Write one valid group; return its index.csv row."""
-    t = t0 + np.arange(int(round(duration_s * MOCAP_HZ)) + 1) / MOCAP_HZ
-    mocap = make_mocap(t, **kinematics)
+    """Write one valid group (mocap at mocap_hz); return its index.csv row."""
+    t = t0 + np.arange(int(round(duration_s * mocap_hz)) + 1) / mocap_hz
+    mocap = make_mocap(t, hz=mocap_hz, **kinematics)
     # The servo log starts a little before and ends a little after the mocap.
     servo = make_servo(t[0] - 0.03, t[-1] + 0.03, seed=seed)
     base_pos = kinematics.get("base_pos", BASE_POS)

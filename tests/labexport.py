@@ -328,3 +328,74 @@ def write_operator_labels(metas, path) -> pd.DataFrame:
         w.writeheader()
         w.writerows(rows)
     return pd.DataFrame(rows, columns=columns)
+
+
+# --- a whole session, as a lab hands it to `esnap import` -------------------------------------------------
+
+# Three markers per body in its own frame (m): a scalene triangle, so no fit is ambiguous.
+LAYOUT = {"m1": [0.02, 0.0, 0.0], "m2": [-0.01, 0.0, 0.025], "m3": [0.0, 0.015, -0.02]}
+# Occlusions of up to 3 frames: beside the simulated rig's own dropouts (at most 0.071 s on the
+# smoke and quick trees) a gap stays within the gate's 0.1 s, as a lab's takes would have to.
+GAP_FRAMES = (1, 3)
+SERVO_CLOCK_EVENTS = ("t_preload", "t_slack", "t_s2", "t_s1", "t_release", "t_up", "t_down")
+
+
+def export_tree(raw, out, fmt: str = "motive", rate_hz: float = 120, offset_s: float = 0.137, drift_ppm: float = 20.0,
+                occlusions: int = 2, noise_m: float = 0.0003, group_ids=None, seed: int = 0) -> list[Path]:
+    """A native tree's groups (all, or group_ids) written out as a lab's sessions: per session a
+    session file (`<session>.yaml`), an operator sheet (`<session>_labels.csv`), per take a capture
+    export (Motive CSV in mm with x, y, z, w quaternions and occlusion gaps, or C3D markers,
+    three per body, with noise_m noise) and a servo log on a clock offset_s behind with drift_ppm;
+    and `lab.yaml` mapping it all. The servo PC's phase times (SERVO_CLOCK_EVENTS) go into the
+    session file on its own clock; the operator's labels are read off the capture's clock (the
+    export's: native t minus the first frame's). Returns the session files."""
+    import yaml
+
+    raw, out = Path(raw), Path(out)
+    (out / "takes").mkdir(parents=True, exist_ok=True)
+    index = pd.read_csv(raw / "index.csv", dtype=str)
+    if group_ids is not None:
+        index = index[index.group_id.isin(list(group_ids))]
+    rng = np.random.default_rng(seed)
+    if fmt == "motive":
+        bodies = {b: {"rigid_body": DEFAULT_NAMES[b]} for b in BODIES}
+    else:
+        bodies = {b: {"markers": {f"{DEFAULT_NAMES[b]}:{m}": xyz for m, xyz in LAYOUT.items()}} for b in BODIES}
+    lab = dict(capture=dict(axes="y_up"), bodies=bodies, servos=list(range(1, 10)),
+               arm=dict(arm_length_m=0.73, tendon_radius_m=[0.03715, 0.02229, 0.02196], end_effector_m=0.15),
+               clock=dict(sync="none", max_drift_ppm=100, max_offset_s=0.15))
+    (out / "lab.yaml").write_text(yaml.safe_dump(lab, sort_keys=False))
+    sessions = []
+    for session, rows in index.groupby("session", sort=True):
+        takes, metas = [], []
+        for r in rows.itertuples():
+            d = raw / "groups" / r.group_id
+            mocap, servo = pd.read_parquet(d / "mocap.parquet"), pd.read_parquet(d / "servo.parquet")
+            meta = read_meta(d / "meta.json")
+            t0 = float(mocap.t.iloc[0])
+            if fmt == "motive":
+                name = f"takes/{r.group_id}.csv"
+                write_motive_csv(mocap, out / name, rate_hz=rate_hz, units="Millimeters", occlusions=occlusions,
+                                 rng=rng, gap_frames=GAP_FRAMES, take_name=f"Take {r.group_id}")
+            else:
+                name = f"takes/{r.group_id}.c3d"
+                write_c3d(mocap, out / name, {b: dict(LAYOUT) for b in BODIES}, rate_hz=rate_hz,
+                          noise_m=noise_m, rng=rng, occlusions=occlusions, gap_frames=GAP_FRAMES)
+            log = f"takes/{r.group_id}_servo.csv"
+            write_servo_log(servo, out / log, offset_s, drift_ppm)
+            labels = meta.get("labels", {})
+            events = {k: float(servo_clock(labels[k], offset_s, drift_ppm)) for k in SERVO_CLOCK_EVENTS if k in labels}
+            take = dict(group_id=r.group_id, evidence_set=r.evidence_set, category=r.category,
+                        recorded_at=r.recorded_at, mocap=name, servo=log, program=meta.get("program", {}),
+                        events=events)
+            if "target" in meta:
+                take["target"] = meta["target"]
+            takes.append(take)
+            seen = dict(meta, labels={k: (v - t0 if k == PUSH_LABEL else v) for k, v in labels.items()})
+            metas.append(seen)
+        write_operator_labels(metas, out / f"{session}_labels.csv")
+        path = out / f"{session}.yaml"
+        path.write_text(yaml.safe_dump(dict(session=str(session), labels=f"{session}_labels.csv", takes=takes),
+                                       sort_keys=False))
+        sessions.append(path)
+    return sessions

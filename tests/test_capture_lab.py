@@ -58,9 +58,8 @@ def refused(tmp_path, edit):
 def test_a_valid_lab_file_loads(tmp_path):
     lab = load_lab(write(tmp_path))
     assert lab.servos == (11, 12, 13, 21, 22, 23, 31, 32, 33)
-    assert lab.units is None
     assert lab.bodies["base"] == {"rigid_body": "Base"}
-    assert lab.clock == {"sync": {"column": "sync"}, "max_drift_ppm": 50}
+    assert lab.clock == {"sync": {"column": "sync"}, "max_drift_ppm": 50, "max_offset_s": 0.15}  # the default
     assert lab.arm["end_effector_m"] == 0.15
 
 
@@ -120,7 +119,7 @@ def test_a_body_the_schema_refuses(tmp_path, body, rule):
         (lambda d: d["servos"].__setitem__(8, 253), "servos.8: 253 is greater than the maximum of 252"),
         (lambda d: d["servos"].pop(), "servos: [11, 12, 13, 21, 22, 23, 31, 32] is too short"),
         (lambda d: d["clock"].update(sync="ntp"),
-         "clock.sync: none, {column: <name in the take>} or {event_time_s: <seconds>}"),
+         "clock.sync: none, {column: <name in the servo log>} or {event_time_s: <seconds>}"),
         (lambda d: d["clock"].pop("max_drift_ppm"), "clock: 'max_drift_ppm' is a required property"),
         (lambda d: d["arm"].pop("arm_length_m"), "arm: 'arm_length_m' is a required property"),
     ],

@@ -184,7 +184,26 @@ def _edits():
         "current NaN": (None, lambda s: s.assign(current_5=s.current_5.where(s.index != 3, nan))),
         "current as bool": (None, lambda s: s.assign(current_6=s.current_6 > 0)),
         "current in A x1000": (None, lambda s: s.assign(current_7=s.current_7 * 1e3)),
+        # The mocap time base (rule "mocap rate constant, 100-500 Hz"); the frame is 240 Hz.
+        "mocap at 120 Hz": (lambda m: m.iloc[::2].reset_index(drop=True), None),
+        "mocap at 30 Hz": (lambda m: m.iloc[::8].reset_index(drop=True), None),
+        "mocap clock at 600 Hz": (lambda m: m.assign(t=m.t.iloc[0] + (m.t - m.t.iloc[0]) * 0.4), None),
+        "mocap clock at 100 Hz": (lambda m: m.assign(t=m.t.iloc[0] + (m.t - m.t.iloc[0]) * 2.4), None),
+        "every 10th mocap row missing": (lambda m: m.drop(index=m.index[9::10]).reset_index(drop=True), None),
+        "mocap intervals off by 0.5 %": (lambda m: m.assign(t=m.t + (m.index % 2) * 0.005 / 240), None),
+        "mocap intervals off by 2 %": (lambda m: m.assign(t=m.t + (m.index % 2) * 0.02 / 240), None),
+        "mocap rate 240 then 360 Hz": (
+            lambda m: m.assign(t=m.t.where(m.index < 300, m.t.iloc[300] + (m.index - 300) / 360.0)), None),
+        "mocap t inf": (lambda m: m.assign(t=m.t.where(m.index != len(m) - 1, float("inf"))), None),
     }
+
+
+# Edits the schema passes: the fast path must pass them too (it only doubts what it cannot check).
+_BOTH_PASS = ("none", "mocap at 120 Hz", "mocap clock at 100 Hz",
+              "every 10th mocap row missing", "mocap intervals off by 0.5 %")
+# Time bases the schema refuses (and so the fast path, by the assertion above).
+_SCHEMA_REFUSES = ("mocap at 30 Hz", "mocap clock at 600 Hz", "mocap intervals off by 2 %",
+                   "mocap rate 240 then 360 Hz", "mocap t inf")
 
 
 @pytest.mark.parametrize("edit", list(_edits()))
@@ -209,8 +228,10 @@ def test_fast_path_passes_only_what_pandera_passes(raw, edit):
         except (pe.SchemaError, pe.SchemaErrors):
             ok = False
         assert not fast(df) or ok
-        if edit == "none":
+        if edit in _BOTH_PASS:
             assert fast(df) and ok
+        if edit in _SCHEMA_REFUSES:
+            assert not ok
 
 
 @pytest.mark.parametrize(

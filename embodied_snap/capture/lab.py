@@ -32,17 +32,18 @@ ROTATION_TOL = 1e-6
 # A triangle of markers flatter than this is a line in practice: its rotation about the long side
 # would be set by the capture's sub-millimetre noise, and fit_pose accepts a frame that sees 3.
 MIN_HEIGHT_M = 1e-3
+# sync none: how far the clock shift is searched from the one that lines up the logs' first samples
+MAX_OFFSET_S = 0.15
 
 
 @dataclass(frozen=True, eq=False)
 class Lab:
     path: Path
     rotation: np.ndarray  # (3, 3): lab = rotation @ capture
-    units: str | None  # only for an export that does not say its units
     bodies: dict[str, dict]  # name -> {"rigid_body": name} or {"markers": {label: [x, y, z]}}
     servos: tuple[int, ...]  # bus id behind servo column 1..9
     arm: dict  # arm_length_m, tendon_radius_m, end_effector_m
-    clock: dict  # sync ("none", {"column": name} or {"event_time_s": s}), max_drift_ppm
+    clock: dict  # sync ("none", {"column": name} or {"event_time_s": s}), max_drift_ppm, max_offset_s
 
     def to_lab_frame(self, points) -> np.ndarray:
         """(..., 3) capture coordinates -> lab coordinates."""
@@ -105,8 +106,8 @@ def load_lab(path: str | Path) -> Lab:
             if height < MIN_HEIGHT_M:
                 raise CaptureError(path, f"bodies.{name}.markers: {', '.join(labels)} lie on one line (within 1 mm): "
                                    "a frame that sees only them has no rotation about it")
-    return Lab(path=path, rotation=rotation, units=doc["capture"].get("units"), bodies=doc["bodies"],
-               servos=servos, arm=doc["arm"], clock=doc["clock"])
+    return Lab(path=path, rotation=rotation, bodies=doc["bodies"],
+               servos=servos, arm=doc["arm"], clock={"max_offset_s": MAX_OFFSET_S, **doc["clock"]})
 
 
 def _not_finite(path, value, where):

@@ -1,4 +1,4 @@
-"""Kinematics from the 240 Hz motion capture: tip speed, section bend angle and bend rate.
+"""Kinematics from the motion capture (any constant rate the gate passes): tip speed, section bend angle and bend rate.
 
 A section's bend is the rotation between its proximal and distal tracked frames (base->s1,
 s1->s2, s2->tip). Every tracked frame is identity on the straight hanging arm, so a frame's
@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from .. import rawformat as RF
 from ..quat import qconj, qmul, qrotate
 
 SECTION_FRAMES = (("base", "s1"), ("s1", "s2"), ("s2", "tip"))
@@ -18,13 +17,25 @@ SECTION_FRAMES = (("base", "s1"), ("s1", "s2"), ("s2", "tip"))
 
 def track(mc: pd.DataFrame, body: str, fields=("x", "y", "z"), *, max_gap_s: float) -> np.ndarray:
     """One body's columns, invalid samples NaN, dropouts up to max_gap_s (the protocol's
-    sampling.max_gap_s, as in the resampling) bridged linearly."""
+    sampling.max_gap_s, as in the resampling) bridged linearly. The limit is in seconds: as
+    samples, it counts the track's own median interval, whatever its rate."""
     x = mc[[f"{body}_{f}" for f in fields]].copy()
     x[~mc[f"{body}_valid"].to_numpy(bool)] = np.nan
-    x = x.interpolate(limit=int(round(max_gap_s * RF.MOCAP_HZ)), limit_area="inside").to_numpy()
+    limit = gap_frames(mc["t"].to_numpy(), max_gap_s)
+    if limit >= 1:  # pandas' limit counts samples and must be positive
+        x = x.interpolate(limit=limit, limit_area="inside")
+    x = x.to_numpy()
     if len(fields) == 4:
         x = x / np.linalg.norm(x, axis=1, keepdims=True)
     return x
+
+
+def gap_frames(t: np.ndarray, max_gap_s: float) -> int:
+    """max_gap_s as a number of samples of the time base t (its median interval); 0 below two."""
+    if len(t) < 2:
+        return 0
+    step = float(np.median(np.diff(t)))
+    return int(round(max_gap_s / step)) if step > 0 else 0
 
 
 def smooth3(x: np.ndarray) -> np.ndarray:

@@ -192,6 +192,22 @@ def may_feed(source: str, rule: str, wildcards: dict) -> bool:
     return any(e == rule or e == lab for e in p.may_feed)
 
 
+# Each stage's reports (tables, figures, the ledger), as the rows above name them: a row that names
+# one of these whole feeds the stage's reports, not one report in particular (`needs`).
+REPORTS = (CHAR_REPORTS, DYN_REPORTS, POLICY_REPORTS, ROBUSTNESS_REPORTS, DEPLOY_REPORTS, ABLATION_EVAL[2:])
+
+
+def needs(evidence_set: str) -> list[str]:
+    """The rules that need an evidence set's recordings (`esnap validate --partial` names them for
+    a set a tree lacks): those its policy row lets its data feed, for the dynamics corpus those of
+    any of its split roles, less the reports of a stage the row names whole (REPORTS: they come
+    after the fits); a report a row names on its own (Fig. 1's attachment trial) stays. The
+    separation proof holds the workflow to these rows (`esnap check-separation`)."""
+    rows = [POLICY[evidence_set]] if evidence_set in POLICY else [POLICY[r] for r in WINDOW_ROLES]
+    names = {_names(e) for p in rows for e in p.may_feed}
+    return sorted(names - {r for t in REPORTS if set(t) <= names for r in t})
+
+
 def held_out(role: str, evidence_set: str) -> bool:
     """Validation and sealed groups, and every evidence set that must never feed a model fit."""
     p = POLICY.get(role) or POLICY.get(evidence_set)
