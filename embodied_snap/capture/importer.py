@@ -31,6 +31,7 @@ import pandas as pd
 
 from .. import rawformat as RF
 from ..characterize.mocap import section_bends, tip_speed
+from ..io import read_parquet
 from ..schemacheck import violation
 from ..validate import COVER_TOL_S
 from .clock import check_drift, estimate_offset, measure_drift
@@ -225,7 +226,7 @@ def servo_table(path: Path, lab: Lab) -> pd.DataFrame:
     if path.is_dir():  # esnap deploy's folder: already in the format's columns
         p = path / "servo.parquet"
         try:
-            df = pd.read_parquet(p)
+            df = read_parquet(p)
         except (OSError, ValueError) as e:
             raise CaptureError(p, f"not readable as parquet ({' '.join(str(e).split())})") from None
         return df
