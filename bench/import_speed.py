@@ -42,21 +42,49 @@ def main(argv=None):
     ap.add_argument("--rate", type=float, default=120)
     ap.add_argument("--sync", choices=["event", "none"], default="event")
     ap.add_argument("--config", action="append", default=[], help="K=V, as esnap's --config")
+    ap.add_argument("--reuse", action="store_true", help="import WORK_DIR/export as it is (written by an earlier run)")
     a = ap.parse_args(argv)
     pa.set_cpu_count(1)
     pa.set_io_thread_count(1)
     work = Path(a.work_dir)
-    shutil.rmtree(work, ignore_errors=True)
+    shutil.rmtree(work / "raw", ignore_errors=True)
     t = time.perf_counter()
-    sessions = export_tree(a.raw_dir, work / "export", fmt=a.fmt, rate_hz=a.rate, offset_s=OFFSET_S)
+    if a.reuse:
+        sessions = sorted((work / "export").glob("*.yaml"))
+        sessions = [s for s in sessions if s.name != "lab.yaml"]
+    else:
+        shutil.rmtree(work, ignore_errors=True)
+        sessions = export_tree(a.raw_dir, work / "export", fmt=a.fmt, rate_hz=a.rate, offset_s=OFFSET_S)
     t_export = time.perf_counter() - t
     lab_path = work / "export" / "lab.yaml"
+    doc = yaml.safe_load(lab_path.read_text())
     if a.sync == "event":  # the export's clock starts at the native first frame, t = 0.001 s
-        doc = yaml.safe_load(lab_path.read_text())
         doc["clock"] = dict(sync=dict(event_time_s=OFFSET_S - 0.001), max_drift_ppm=100)
-        lab_path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    else:
+        doc["clock"] = dict(sync="none", max_drift_ppm=100)
+    lab_path.write_text(yaml.safe_dump(doc, sort_keys=False))
     lab = load_lab(lab_path)
     cfg = runconfig.load(None, a.config)
+    if a.sync == "none":  # every take's clock fit on its own (no gate, nothing written), refused ones counted
+        from embodied_snap.capture.importer import build_group, load_session
+
+        err, bad, t = [], [], time.perf_counter()
+        for s in sessions:
+            for spec in load_session(s):
+                try:
+                    err.append(build_group(spec, lab, cfg)[0]["clock"]["offset_s"] - (OFFSET_S - 0.001))
+                except CaptureError as e:
+                    bad.append(f"{spec.meta['group_id']}: {e.rule}")
+        dt = time.perf_counter() - t
+        err, frame = np.array(err) * 1e3, 1e3 / a.rate
+        print(f"clock fit on {len(err) + len(bad)} takes in {dt:.1f} s: {len(bad)} refused; offset error (ms) median "
+              f"{np.median(err):+.1f}, |err| p90 {np.percentile(abs(err), 90):.1f}, max {abs(err).max():.1f}; "
+              f"within one frame ({frame:.1f} ms): {(abs(err) <= frame).sum()} of {len(err)}")
+        kinds = {}
+        for line in bad:
+            kinds[line.split(": ", 1)[1].split(":")[0]] = kinds.get(line.split(": ", 1)[1].split(":")[0], 0) + 1
+        print("  refused:", kinds)
+        return
     n, refused, t = 0, [], time.perf_counter()
     for s in sessions:
         try:
@@ -68,22 +96,6 @@ def main(argv=None):
           f"({n / t_import:.2f} takes/s, one core); {len(refused)} session(s) refused")
     for line in refused:
         print(f"  refused: {line}")
-    if a.sync == "none":  # every take's clock fit on its own, refused ones counted
-        from embodied_snap.capture.importer import build_group, load_session
-
-        err, bad = [], []
-        for s in sessions:
-            for spec in load_session(s):
-                try:
-                    err.append(build_group(spec, lab, cfg)[0]["clock"]["offset_s"] - (OFFSET_S - 0.001))
-                except CaptureError as e:
-                    bad.append(f"{spec.meta['group_id']}: {e.rule}")
-        err, frame = np.array(err) * 1e3, 1e3 / a.rate
-        print(f"clock fit on {len(err) + len(bad)} takes: {len(bad)} refused; offset error (ms) median "
-              f"{np.median(err):+.1f}, |err| p90 {np.percentile(abs(err), 90):.1f}, max {abs(err).max():.1f}; "
-              f"within one frame ({frame:.1f} ms): {(abs(err) <= frame).sum()} of {len(err)}")
-        for line in bad[:10]:
-            print(f"  refused: {line}")
 
 if __name__ == "__main__":
     main()
