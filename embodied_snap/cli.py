@@ -155,9 +155,10 @@ def _fits_run(a, cfg: dict | None) -> None:
 def cmd_validate(a) -> int:
     """Exactly what the workflow checks before its DAG (verdicts.check_tree): one line on error.
     --partial: the same gate on a tree holding part of the corpus, and which sets it lacks."""
+    from .lineage.policy import coverage
     from .plan import PlanError
     from .validate import RecordingError
-    from .verdicts import check_tree, coverage
+    from .verdicts import check_tree
 
     cfg = _tree_config(a)
     _fits_tree(a, cfg)

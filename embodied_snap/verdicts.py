@@ -103,16 +103,3 @@ def check_tree(config: dict, raw_dir, partial: bool = False):
     """`esnap validate`: exactly what the workflow checks before its DAG (gate_tree), on every
     group; `partial`: of a tree holding part of the corpus (gate_tree). Returns the plan."""
     return gate_tree(config, raw_dir, partial=partial)[0]
-
-
-def coverage(config: dict, plan) -> tuple[dict[str, int], dict[str, list[str]]]:
-    """Which evidence sets the plan holds (groups per set, in plan order) and which of those the
-    budget asks for it lacks, each with the rules that need it (lineage.policy.needs)."""
-    from .lineage.policy import needs
-    from .rawformat import EVIDENCE_SETS
-
-    counts = plan.evidence_set.value_counts()
-    present = {es: int(counts[es]) for es in EVIDENCE_SETS if es in counts}
-    asked = config["budgets"][config["budget"]]["groups"]
-    missing = {es: needs(es) for es in EVIDENCE_SETS if es in asked and es not in present}
-    return present, missing
