@@ -155,8 +155,9 @@ def _fits_run(a, cfg: dict | None) -> None:
 def cmd_validate(a) -> int:
     """Exactly what the workflow checks before its DAG (verdicts.check_tree): one line on error.
     --partial: the same gate on a tree holding part of the corpus, and which sets it lacks."""
-    from .lineage.policy import coverage
+    from .lineage.policy import needs
     from .plan import PlanError
+    from .rawformat import EVIDENCE_SETS
     from .validate import RecordingError
     from .verdicts import check_tree
 
@@ -175,7 +176,10 @@ def cmd_validate(a) -> int:
             out = [f"{p}_* ({stages.count(p)})" if stages.count(p) > 4 else r for r, p in zip(rules, stages)]
             return ", ".join(dict.fromkeys(out))
 
-        present, missing = coverage(cfg, plan)
+        counts = plan.evidence_set.value_counts()  # the sets held, and those the budget asks for that it lacks
+        present = {es: int(counts[es]) for es in EVIDENCE_SETS if es in counts}
+        asked = cfg["budgets"][cfg["budget"]]["groups"]
+        missing = {es: needs(es) for es in EVIDENCE_SETS if es in asked and es not in present}
         line += f" (partial corpus: {', '.join(f'{es} {n}' for es, n in present.items()) or 'no groups'})"
         line += f"; missing: {'; '.join(f'{es} (needed by {short(r)})' for es, r in missing.items()) or 'none'}"
     print(line + (f"; excluded: {', '.join(f'{g} ({r})' for g, r in ex.items())}" if ex else ""))

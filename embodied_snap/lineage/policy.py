@@ -212,15 +212,3 @@ def held_out(role: str, evidence_set: str) -> bool:
     """Validation and sealed groups, and every evidence set that must never feed a model fit."""
     p = POLICY.get(role) or POLICY.get(evidence_set)
     return bool(p and p.held_out)
-
-
-def coverage(config: dict, plan) -> tuple[dict[str, int], dict[str, list[str]]]:
-    """Which evidence sets the plan holds (groups per set, in plan order) and which of those the
-    budget asks for it lacks, each with the rules that need it (needs)."""
-    from ..rawformat import EVIDENCE_SETS
-
-    counts = plan.evidence_set.value_counts()
-    present = {es: int(counts[es]) for es in EVIDENCE_SETS if es in counts}
-    asked = config["budgets"][config["budget"]]["groups"]
-    missing = {es: needs(es) for es in EVIDENCE_SETS if es in asked and es not in present}
-    return present, missing
