@@ -237,8 +237,7 @@ def cmd_import(a) -> int:
     except (CaptureError, ImportRefused) as e:
         print(f"error: {_one_line(e)} (nothing written to {raw})", file=sys.stderr)
         return 1
-    for k, want in (("arm_length_m", cfg["rig"]["arm_length_m"]), ("end_effector_m", cfg["rig"]["end_effector_m"]),
-                    ("tendon_radius_m", cfg["rig"]["tendon_radius_m"])):
+    for k, want in ((k, cfg["rig"][k]) for k in lab.arm):  # the lab schema's arm keys are config rig keys
         if lab.arm[k] != want:
             print(f"note: {lab_path}: arm.{k} is {lab.arm[k]} and the config's rig.{k} {want}: the fits use the "
                   f"config's; set rig.{k} in config.yaml to the lab's", file=sys.stderr)

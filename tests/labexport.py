@@ -340,6 +340,18 @@ GAP_FRAMES = (1, 3)
 SERVO_CLOCK_EVENTS = ("t_preload", "t_slack", "t_s2", "t_s1", "t_release", "t_up", "t_down")
 
 
+def lab_doc(kind: str, clock: dict, bodies=BODIES) -> dict:
+    """A lab file for these exports: each body by its rigid body (`kind` "rigid_body") or its LAYOUT
+    markers ("markers"), the servos in order, the arm as config.yaml's rig section gives it."""
+    import yaml
+
+    rig = yaml.safe_load((Path(__file__).resolve().parents[1] / "config.yaml").read_text())["rig"]
+    spec = {b: {"rigid_body": DEFAULT_NAMES[b]} if kind == "rigid_body" else
+            {"markers": {f"{DEFAULT_NAMES[b]}:{m}": xyz for m, xyz in LAYOUT.items()}} for b in bodies}
+    return dict(capture=dict(axes="y_up"), bodies=spec, servos=list(range(1, 10)),
+                arm={k: rig[k] for k in ("arm_length_m", "tendon_radius_m", "end_effector_m")}, clock=clock)
+
+
 def export_tree(raw, out, fmt: str = "motive", rate_hz: float = 120, offset_s: float = 0.137, drift_ppm: float = 20.0,
                 occlusions: int = 2, noise_m: float = 0.0003, group_ids=None, seed: int = 0) -> list[Path]:
     """A native tree's groups (all, or group_ids) written out as a lab's sessions: per session a
@@ -357,13 +369,7 @@ def export_tree(raw, out, fmt: str = "motive", rate_hz: float = 120, offset_s: f
     if group_ids is not None:
         index = index[index.group_id.isin(list(group_ids))]
     rng = np.random.default_rng(seed)
-    if fmt == "motive":
-        bodies = {b: {"rigid_body": DEFAULT_NAMES[b]} for b in BODIES}
-    else:
-        bodies = {b: {"markers": {f"{DEFAULT_NAMES[b]}:{m}": xyz for m, xyz in LAYOUT.items()}} for b in BODIES}
-    lab = dict(capture=dict(axes="y_up"), bodies=bodies, servos=list(range(1, 10)),
-               arm=dict(arm_length_m=0.73, tendon_radius_m=[0.03715, 0.02229, 0.02196], end_effector_m=0.15),
-               clock=dict(sync="none", max_drift_ppm=100, max_offset_s=0.15))
+    lab = lab_doc("markers" if fmt == "c3d" else "rigid_body", dict(sync="none", max_drift_ppm=100, max_offset_s=0.15))
     (out / "lab.yaml").write_text(yaml.safe_dump(lab, sort_keys=False))
     sessions = []
     for session, rows in index.groupby("session", sort=True):

@@ -27,6 +27,7 @@ from labexport import (
     DEFAULT_NAMES,
     LAYOUT,
     SERVO_CLOCK_EVENTS,
+    lab_doc,
     servo_clock,
     write_c3d,
     write_motive_csv,
@@ -41,13 +42,8 @@ IDS = ("dyn_0001", "dyn_0002")
 
 
 def lab_file(path, fmt="csv", sync=None, bodies=BODIES):
-    if fmt == "csv":
-        spec = {b: {"rigid_body": DEFAULT_NAMES[b]} for b in bodies}
-    else:
-        spec = {b: {"markers": {f"{DEFAULT_NAMES[b]}:{m}": xyz for m, xyz in LAYOUT.items()}} for b in bodies}
-    lab = dict(capture=dict(axes="y_up"), bodies=spec, servos=list(range(1, 10)),
-               arm=dict(arm_length_m=0.73, tendon_radius_m=[0.03715, 0.02229, 0.02196], end_effector_m=0.15),
-               clock=dict(sync={"event_time_s": SYNC_S} if sync is None else sync, max_drift_ppm=100))
+    clock = dict(sync={"event_time_s": SYNC_S} if sync is None else sync, max_drift_ppm=100)
+    lab = lab_doc("rigid_body" if fmt == "csv" else "markers", clock, bodies)
     path.write_text(yaml.safe_dump(lab, sort_keys=False))
     return path
 

@@ -32,11 +32,10 @@ import pandas as pd
 from .. import rawformat as RF
 from ..characterize.mocap import section_bends, tip_speed
 from ..io import read_parquet
-from ..schemacheck import violation
 from ..validate import COVER_TOL_S
 from .clock import check_drift, estimate_offset, measure_drift
 from .errors import CaptureError
-from .lab import Lab
+from .lab import Lab, read_yaml
 
 SESSION_SCHEMA = Path(__file__).resolve().parents[2] / "schemas" / "session.schema.yaml"
 # A take's shared motion can be a few seconds (a calibration burst is 2 s): the clock fit needs
@@ -66,18 +65,8 @@ class TakeSpec:
 
 
 def load_session(path) -> list[TakeSpec]:
-    import yaml
-
     path = Path(path)
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise CaptureError(path, f"not readable ({e.strerror})") from None
-    except yaml.YAMLError as e:
-        raise CaptureError(path, f"not readable as YAML ({' '.join(str(e).split())})") from None
-    err = violation(doc, SESSION_SCHEMA)
-    if err:
-        raise CaptureError(path, err)
+    doc = read_yaml(path, SESSION_SCHEMA)
     base = path.parent
     takes = []
     for k, t in enumerate(doc["takes"]):

@@ -73,19 +73,25 @@ class Lab:
         return fit_pose(list(spec["markers"].values()), self.to_lab_frame(observed))
 
 
-def load_lab(path: str | Path) -> Lab:
+def read_yaml(path: Path, schema) -> dict:
+    """A YAML file checked against its schema (the lab file, a session file): one CaptureError line."""
     import yaml
 
-    path = Path(path)
     try:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as e:
         raise CaptureError(path, f"not readable ({e.strerror})") from None
     except yaml.YAMLError as e:
         raise CaptureError(path, f"not readable as YAML ({' '.join(str(e).split())})") from None
-    err = violation(doc, SCHEMA)
+    err = violation(doc, schema)
     if err:
         raise CaptureError(path, err)
+    return doc
+
+
+def load_lab(path: str | Path) -> Lab:
+    path = Path(path)
+    doc = read_yaml(path, SCHEMA)
     _not_finite(path, doc, "")
     servos = tuple(int(i) for i in doc["servos"])
     for col, sid in enumerate(servos, 1):
