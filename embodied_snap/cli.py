@@ -333,6 +333,72 @@ def cmd_resources(a) -> int:
     return 0
 
 
+def cmd_lab_plan(a) -> int:
+    """The sessions a lab records for a budget (docs/acquisition.md): the acquisition protocol's
+    groups, programs and operator steps, the targets where the simulated rig's model of the arm
+    says the cup strikes."""
+    from .lab import plan as LP
+    from .twin.acquire import place_target  # a suggestion for the operator; the capture measures it
+
+    cfg = _config(a)
+    budget = a.budget or cfg["budget"]
+    if budget not in cfg["budgets"]:
+        raise UsageError(f"--budget {budget}: not a budget of the config ({', '.join(cfg['budgets'])})")
+    out = _path(a.out, "--out")
+    if out.is_dir():
+        raise UsageError(f"--out {out}: a directory; give the plan file to write")
+    if out.exists() and not a.force:
+        raise UsageError(f"--out {out}: exists (a plan being recorded is never rewritten; --force to replace it)")
+    proto = None
+    if not a.no_targets:
+        from . import protocol
+
+        proto = protocol.load(cfg)
+
+    def place(bearing, offset):
+        t = place_target(bearing, offset, float(cfg["twin"]["dt"]), proto)
+        return dict(centre_m=[round(float(v), 4) for v in t["pos"]], quat=[round(float(v), 5) for v in t["quat"]])
+
+    doc = LP.build(cfg, budget, place=None if a.no_targets else place)
+    LP.write(doc, out)
+    print(LP.summary(doc))
+    env, ids = doc["envelope"], doc["servos"]["ids"]
+    print(f"wrote {out}: {len(doc['groups'])} groups in {len({e['session'] for e in doc['groups']})} sessions, "
+          f"{sum(e['duration_s'] for e in doc['groups']) / 60:.1f} min of programs; set the servos' EEPROM position "
+          f"limits (ids {ids[0]}..{ids[-1]}) to min {env['eeprom_min']}, max {env['eeprom_max']}")
+    return 0
+
+
+def cmd_lab_acquire(a) -> int:
+    """Record the plan's groups on the arm (docs/acquisition.md); every argument and every group's
+    goals are checked before the port opens."""
+    from .lab.acquire import LabArgumentError, LabError, acquire
+
+    _file(a.plan, "--plan")
+    if not a.port or not a.port.strip():
+        raise UsageError("--port: empty (the servo bus, e.g. /dev/ttyUSB0)")
+    if not os.path.exists(a.port):
+        raise UsageError(f"--port {a.port}: no such device")
+    if not a.yes and not sys.stdin.isatty():
+        raise UsageError("--yes is required when stdin is not a terminal: nobody can be asked before the arm moves")
+    out = _made_dir(a.out, "--out")
+    try:
+        acquire(a.plan, a.port, out, start=a.from_group, yes=a.yes, baud=a.baud, ask=_answer)
+    except LabArgumentError as e:
+        raise UsageError(str(e)) from None
+    except LabError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _answer(question: str) -> str:
+    try:
+        return input(question)
+    except EOFError:  # Ctrl-D: stop the session
+        return "q"
+
+
 def cmd_deploy(a) -> int:
     """One open-loop trial of the manifest's policy (docs/deployment.md). Numpy + dynamixel-sdk only.
     Every argument is checked (deploy/arguments.py) before the port opens."""
@@ -592,6 +658,25 @@ def parser() -> argparse.ArgumentParser:
     rs.add_argument("--root", default=".", help="the workflow (its rules' benchmarks and threads)")
     rs.add_argument("--check", action="store_true", help="only compare; exit 1 when the profile differs")
     rs.set_defaults(fn=cmd_resources)
+
+    lb = sub.add_parser("lab", help="the paper's acquisition on the lab's arm: plan the sessions, record them")
+    lsub = lb.add_subparsers(dest="lab_cmd", required=True, metavar="ACTION")
+    lp = lsub.add_parser("plan", help="the sessions to record for a budget, in the order an operator works")
+    lp.add_argument("--budget", help="paper, quick or smoke (default: config.yaml's budget)")
+    lp.add_argument("--out", required=True, help="the plan file to write (YAML)")
+    lp.add_argument("--no-targets", action="store_true",
+                    help="no suggested target positions (they come from the simulated rig's model of the arm)")
+    lp.add_argument("--force", action="store_true", help="replace an existing plan file")
+    _config_args(lp, "default: config.yaml; its budgets, seed, deployment bus settings")
+    lp.set_defaults(fn=cmd_lab_plan)
+    la = lsub.add_parser("acquire", help="record the plan's groups on the arm, resuming at the first not recorded")
+    la.add_argument("--plan", required=True, help="the plan file esnap lab plan wrote")
+    la.add_argument("--port", required=True, help="serial port of the servo bus, e.g. /dev/ttyUSB0")
+    la.add_argument("--out", required=True, help="the session folder (groups/, aborted/, takes/, <session>.yaml)")
+    la.add_argument("--from", dest="from_group", metavar="GROUP", help="start at this group (never one recorded)")
+    la.add_argument("--baud", type=int, help="default: the plan's (1000000); one the XM430 supports")
+    la.add_argument("--yes", action="store_true", help="do not wait for the operator before each group")
+    la.set_defaults(fn=cmd_lab_acquire)
 
     d = sub.add_parser("deploy", help="run one open-loop trial of the deployment manifest on the servos")
     d.add_argument("--manifest", default="results/deployment/manifest.json")

@@ -37,7 +37,7 @@ def test_only_acquisition_scripts_import_the_twin():
 
 def test_the_check_sees_every_import_form(tmp_path):
     forms = ["from embodied_snap.twin.acquire import acquire_groups", "import embodied_snap.twin.sim",
-             "from embodied_snap.twin import protocols", "from embodied_snap import twin"]
+             "from embodied_snap.twin import acquire", "from embodied_snap import twin"]
     for k, line in enumerate(forms):
         (tmp_path / f"s{k}.py").write_text(line + "\n")
     (tmp_path / "ok.py").write_text("from embodied_snap.primitive import release_goals\nimport embodied_snap.twinkle\n")

@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 
 from embodied_snap import bearing as BR
+from embodied_snap.acquisition import programs as P
 from embodied_snap.policy import actions, geometry, networks, reward, search, targets
 from embodied_snap.primitive import release_goals
-from embodied_snap.twin import protocols as P
 
 from paper_protocol import PROTO
 

@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 
 from embodied_snap import rawformat as RF
+from embodied_snap.acquisition import programs as P
 from embodied_snap.twin import model as M
-from embodied_snap.twin import protocols as P
 from embodied_snap.twin import servo as SV
 from embodied_snap.twin import sim
 from embodied_snap.twin import truth as TR

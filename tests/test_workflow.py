@@ -238,7 +238,7 @@ def dry_reasons(cwd, *targets) -> dict[tuple[str, str], str]:
 
 
 @pytest.mark.parametrize(
-    "module", ["embodied_snap/twin/protocols.py", "embodied_snap/rawformat.py", "embodied_snap/figures/gates.py"]
+    "module", ["embodied_snap/acquisition/programs.py", "embodied_snap/rawformat.py", "embodied_snap/figures/gates.py"]
 )
 def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, module):
     """Which rules' scripts load the module is found by Python's import machinery; the dry run must

@@ -46,6 +46,11 @@ MIN_OVERLAP_S = 1.0
 MIN_PEAK_CORRELATION = 0.4
 # The operator's sheet: outcome labels are true/false, every other label a number (a time).
 OUTCOME_LABELS = ("attached", "retrieved", "snap_speed_event")
+MEASURED_LABELS = ("snap_speed_event",)  # computed here from the take, never asked of the operator
+# What a servo folder's meta.json passes on (esnap deploy's and esnap lab acquire's)
+FOLDER_KEYS = ("group_id", "evidence_set", "category", "recorded_at", "program", "target", "manifest_sha256",
+               "plan_sha256", "protocol_version", "axis")
+PASSED_ON = ("manifest_sha256", "plan_sha256", "protocol_version")  # provenance kept in the group's meta.json
 
 
 class ImportRefused(ValueError):
@@ -73,32 +78,24 @@ def load_session(path) -> list[TakeSpec]:
         servo = base / t["servo"]
         meta = dict(session=doc["session"], program=t.get("program", {}))
         events = dict(t.get("events", {}))
-        if servo.is_dir():  # esnap deploy's group folder: its meta.json says what the servo PC ran
+        labels = {}
+        if servo.is_dir():  # esnap deploy's or esnap lab acquire's group folder: what the servo PC ran
             side = RF.read_meta(servo / "meta.json")
-            meta.update(
-                {
-                    k2: side[k2]
-                    for k2 in (
-                        "group_id",
-                        "evidence_set",
-                        "category",
-                        "recorded_at",
-                        "program",
-                        "target",
-                        "manifest_sha256",
-                        "axis",
-                    )
-                    if k2 in side
-                }
-            )
-            events = {**{k2: v for k2, v in side.get("labels", {}).items() if k2.startswith("t_")}, **events}
+            meta.update({k2: side[k2] for k2 in FOLDER_KEYS if k2 in side})
+            # times on the servo clock: the schedule's phases (labels t_*) and what the client logged
+            # (events, e.g. a held-base cue); the operator's outcomes as answered at the arm
+            side_labels = side.get("labels", {})
+            events = {**{k2: v for k2, v in side_labels.items() if k2.startswith("t_")}, **side.get("events", {}),
+                      **events}
+            labels = {k2: v for k2, v in side_labels.items() if k2 in OUTCOME_LABELS}
         for k2 in ("group_id", "evidence_set", "category", "recorded_at", "target"):
             if k2 in t:
                 meta[k2] = t[k2]
         missing = [k2 for k2 in ("group_id", "evidence_set", "category", "recorded_at") if k2 not in meta]
         if missing:
             raise CaptureError(path, f"takes.{k}: no {missing[0]} (give it, or a servo folder whose meta.json has it)")
-        takes.append(TakeSpec(mocap=base / t["mocap"], servo=servo, meta=meta, events=events))
+        takes.append(TakeSpec(mocap=_capture_of(path, doc, t, meta["group_id"], k), servo=servo, meta=meta,
+                              events=events, labels=labels))
     ids = [t.meta["group_id"] for t in takes]
     dup = next((g for g in ids if ids.count(g) > 1), None)
     if dup:
@@ -106,8 +103,26 @@ def load_session(path) -> list[TakeSpec]:
     if "labels" in doc:
         sheet = read_labels(base / doc["labels"], set(ids))
         for t in takes:
-            t.labels = sheet.get(t.meta["group_id"], {})
+            t.labels = {**t.labels, **sheet.get(t.meta["group_id"], {})}
     return takes
+
+
+CAPTURE_SUFFIXES = (".csv", ".c3d")  # what read_take reads
+
+
+def _capture_of(path: Path, doc: dict, t: dict, gid: str, k: int) -> Path:
+    """The take's export: as given, or the one file in `captures` named by its group id."""
+    if "mocap" in t:
+        return path.parent / t["mocap"]
+    if "captures" not in doc:
+        raise CaptureError(path, f"takes.{k}: no mocap (give it, or a captures folder holding {gid}.csv or {gid}.c3d)")
+    folder = path.parent / doc["captures"]
+    found = [folder / f"{gid}{s}" for s in CAPTURE_SUFFIXES if (folder / f"{gid}{s}").is_file()]
+    if len(found) != 1:
+        what = "no" if not found else "two"
+        raise CaptureError(path, f"take {gid}: {what} capture export named {gid}.csv or {gid}.c3d in {folder} "
+                                 "(rule: a take is named by its group id)")
+    return found[0]
 
 
 def read_labels(path, group_ids: set[str]) -> dict[str, dict]:
@@ -368,9 +383,8 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
 
     labels = {k: round(float(to_capture(v)), 4) for k, v in spec.events.items()}
     v = tip_speed(mocap, max_gap_s)
-    labels["snap_speed_event"] = (
-        bool(np.nanmax(v) >= config["characterize"]["attach_speed_mps"]) if np.isfinite(v).any() else False
-    )
+    (measured,) = MEASURED_LABELS
+    labels[measured] = bool(np.isfinite(v).any() and np.nanmax(v) >= config["characterize"]["attach_speed_mps"])
     labels.update(spec.labels)
     meta = dict(
         format_version=RF.FORMAT_VERSION,
@@ -391,8 +405,7 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
         servo_log=spec.servo.name,
         lab=lab.path.name,
     )
-    if "manifest_sha256" in spec.meta:
-        meta["manifest_sha256"] = spec.meta["manifest_sha256"]
+    meta.update({k: spec.meta[k] for k in PASSED_ON if k in spec.meta})
     return meta, mocap, servo
 
 

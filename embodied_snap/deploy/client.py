@@ -409,10 +409,58 @@ def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
                 df[c] = df[c].round().astype("int64")
         RF.write_parquet(df, d / "servo.parquet")
         files = [d / "servo.parquet"]
-    with open(d / "meta.json", "w") as f:
+    write_meta(d / "meta.json", meta)
+    return files + [d / "meta.json"]
+
+
+def write_meta(path: Path, meta: dict) -> None:
+    with open(path, "w") as f:
         json.dump(meta, f, indent=1, sort_keys=True)
         f.write("\n")
-    return files + [d / "meta.json"]
+
+
+def drive(man: dict, port: str, baud: int, goals: np.ndarray, on_cycle=None) -> tuple:
+    """Open the port, preflight, play the frozen `goals`, and turn torque off whatever happened:
+    (servo log or None, cause of an abort or None, servos whose torque-off failed). `man` needs
+    the manifest's `servos` and `envelope` sections (esnap deploy's manifest, esnap lab's plan);
+    every argument was checked before this is called."""
+    bus = Bus(port, baud, man["servos"]["ids"], man["servos"]["reply_retries"],
+              man["servos"]["reply_timeout_ms"])
+    old = signal.signal(signal.SIGTERM, _sigterm)
+    # Ctrl-C stops the arm even when the parent ignores SIGINT (a shell's background job starts
+    # with it ignored, and Python then installs no handler of its own)
+    old_int = signal.signal(signal.SIGINT, signal.default_int_handler)
+    cause, log = None, None
+    with raised_priority():  # the whole time the arm may move, torque off included
+        try:
+            preflight(bus, man)
+            log = execute(bus, man, goals, on_cycle)
+        except DeployError as e:
+            cause = str(e)
+        except KeyboardInterrupt:
+            cause = "interrupted (SIGINT)"
+        except PORT_ERRORS as e:
+            cause = f"port closed or lost: {e}"
+        finally:
+            failed = bus.torque_off()
+            bus.close()
+            signal.signal(signal.SIGTERM, old)
+            signal.signal(signal.SIGINT, old_int)
+    return log, cause, failed
+
+
+def write_aborted(out: Path, group_id: str, cause: str, failed: list[str], **extra) -> Path:
+    """`aborted/<group_id>.json`: why the trial stopped and whether torque went off."""
+    a = Path(out) / "aborted"
+    a.mkdir(parents=True, exist_ok=True)
+    with open(a / f"{group_id}.json", "w") as f:
+        json.dump(dict(group_id=group_id, cause=cause, torque_off_failed=failed, **extra), f, indent=1)
+    return a / f"{group_id}.json"
+
+
+def aborted_line(cause: str, failed: list[str]) -> str:
+    more = f"; torque off failed: {failed[0]}" if failed else "; torque off on all servos"
+    return f"aborted: {cause}{more}"
 
 
 def run(manifest, port: str | None, target, *, baud: int | None = None, out=None, group_id: str = "dep_0001",
@@ -441,38 +489,12 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     if confirm is not None and not confirm():
         raise DeployError("refused: not confirmed by the operator")
     out_dir = Path(out) if out else None
-    bus = Bus(port, baud, man["servos"]["ids"], man["servos"]["reply_retries"],
-              man["servos"]["reply_timeout_ms"])
-    old = signal.signal(signal.SIGTERM, _sigterm)
-    # Ctrl-C stops the arm even when the parent ignores SIGINT (a shell's background job starts
-    # with it ignored, and Python then installs no handler of its own)
-    old_int = signal.signal(signal.SIGINT, signal.default_int_handler)
-    cause, log = None, None
-    with raised_priority():  # the whole time the arm may move, torque off included
-        try:
-            preflight(bus, man)
-            log = execute(bus, man, goals)
-        except DeployError as e:
-            cause = str(e)
-        except KeyboardInterrupt:
-            cause = "interrupted (SIGINT)"
-        except PORT_ERRORS as e:
-            cause = f"port closed or lost: {e}"
-        finally:
-            failed = bus.torque_off()
-            bus.close()
-            signal.signal(signal.SIGTERM, old)
-            signal.signal(signal.SIGINT, old_int)
+    log, cause, failed = drive(man, port, baud, goals)
     result = dict(trial, log=log, cause=cause, torque_off=not failed)
     if cause is not None:
         if out_dir is not None:
-            a = out_dir / "aborted"
-            a.mkdir(parents=True, exist_ok=True)
-            with open(a / f"{group_id}.json", "w") as f:
-                json.dump(dict(group_id=group_id, cause=cause, torque_off_failed=failed,
-                               manifest_sha256=man["checksum"]), f, indent=1)
-        more = f"; torque off failed: {failed[0]}" if failed else "; torque off on all servos"
-        raise DeployError(f"aborted: {cause}{more}")
+            write_aborted(out_dir, group_id, cause, failed, manifest_sha256=man["checksum"])
+        raise DeployError(aborted_line(cause, failed))
     if out_dir is not None:
         meta = dict(format_version=1, group_id=group_id, evidence_set="deployment", category="placement",
                     session="lab", recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",

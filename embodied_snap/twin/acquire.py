@@ -1,4 +1,5 @@
-"""Acquisition on the simulated rig: one group = draw its program, run it, write it in the rig format.
+"""Acquisition on the simulated rig: one group = its program (embodied_snap.acquisition, the same
+draws as the lab's plan), run on the simulated arm, written in the rig format.
 
 A group's randomness comes from (seed, group_id) only, and its session's parameters from
 (seed, session) only, so a group's bytes do not depend on which other groups share its job.
@@ -13,15 +14,16 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
+from ..acquisition import draws as D
+from ..acquisition import programs as P
 from ..protocol import Protocol
 from . import mocap as MC
-from . import protocols as P
 from . import servo as SV
 from . import sim
 from . import truth as TR
 
 T0 = _dt.datetime(2026, 3, 2, 9, 0, 0)
-BLOCK_HALF = (0.05, 0.03, 0.015)  # the 10 x 6 x 3 cm block; the cups strike its 10 x 6 face (+Z)
+BLOCK_HALF = tuple(s / 2 for s in D.BLOCK_SIZE_M)  # the acquisition's block; the cups strike its +Z face
 
 
 def _rot_y(deg: float) -> np.ndarray:
@@ -72,69 +74,6 @@ def place_target(bearing: float, offset: np.ndarray, dt: float, proto: Protocol)
     return dict(pos=pos, quat=quat, R=R, normal=np.array([0.0, 0.0, 1.0]), half=np.array(BLOCK_HALF))
 
 
-def _uniform(r, box):
-    return float(r.uniform(*box))
-
-
-def draw_program(row: dict, r: np.random.Generator, proto: Protocol) -> dict:
-    """The commanded program of one group (what the operator chose); dynamics groups draw from
-    the policy's action ranges."""
-    box = proto.primitive.ranges
-    es, cat = row["evidence_set"], row["category"]
-    n = int(str(row["group_id"]).split("_")[-1])
-    op = P.OPERATING
-    jit = lambda s: {k: float(op[k] + r.normal(0, s)) for k in ("rho1", "rho2", "rho3")}  # noqa: E731
-    if es == "servo_calibration":
-        return dict(
-            kind="burst",
-            section=int(r.integers(1, 4)),
-            bearing=float(r.uniform(0, 360)),
-            amplitude=float(r.uniform(400, 3000)),
-        )
-    if es == "release_mode" and cat == "direct":
-        # shallow tip curl (below the fold angle): a purely tendon-driven release
-        return dict(
-            kind="direct",
-            rho1=float(r.uniform(2600, 3000)),
-            rho2=float(r.uniform(2200, 2600)),
-            rho3=float(r.uniform(650, 1000)),
-            s3=0.0,
-            dphi=0.0,
-            tau=0.0,
-            bearing=float(r.uniform(190, 230)),
-        )
-    prog = dict(kind="primitive", s3=float(op["s3"]), dphi=0.0, tau=float(op["tau"]), **jit(60.0))
-    if es == "release_mode":
-        prog.update(jit(120.0), tau=_uniform(r, box["tau"]))  # the timing set
-        if cat == "ramped":
-            prog.update(kind="ramped", ramp_s=float(r.uniform(1.0, 6.0)))
-        else:
-            prog.update(kind="instantaneous")
-    elif es == "delay_sweep":
-        # one placement, the operating point held: only the delay changes
-        prog.update(jit(25.0), tau=P.sweep_tau(n))
-    elif es == "attachment":
-        prog.update(jit(150.0), tau=float(r.uniform(0.40, 0.70)))
-    elif es == "dynamics":
-        if cat in ("free_space", "target", "sealed"):
-            prog.update({k: _uniform(r, box[k]) for k in ("rho1", "rho2", "rho3", "dphi", "tau")})
-            prog["s3"] = float(box["s3"][1] * r.uniform(0, 1) ** 2)  # quadratic map: dense near 0
-        elif cat == "pilot":
-            prog.update(jit(200.0), tau=float(r.uniform(0.3, 0.8)))
-        elif cat == "characterisation":
-            prog.update(rho1=_uniform(r, box["rho1"]), rho2=_uniform(r, box["rho2"]))
-    elif es == "held_base":
-        prog.update(jit(150.0), tau=_uniform(r, box["tau"]))
-    spread = 2.0 if es == "delay_sweep" else 20.0
-    prog["bearing"] = float(proto.primitive.phi0_deg + r.uniform(-spread, spread) + prog["dphi"])
-    return prog
-
-
-def has_target(row: dict) -> bool:
-    es, cat = row["evidence_set"], row["category"]
-    return es in ("attachment", "delay_sweep") or (es == "dynamics" and cat in ("target", "sealed"))
-
-
 def hold_wrench(t: np.ndarray, t_e: float, hold: dict, r: np.random.Generator) -> tuple[dict, dict]:
     """The operator's hold of a held-base trial (config twin.held_base): from t_e a force of
     mount_force_n on the mount and proximal_force_n on the proximal S1 segment, one random
@@ -154,28 +93,14 @@ def simulate_group(
     row: dict, seed: int, proto: Protocol, dt: float, hold: dict
 ) -> tuple[dict, pd.DataFrame, pd.DataFrame]:
     gid, session = str(row["group_id"]), str(row["session"])
-    r = TR.rng_for(seed, "group", gid)
+    r, prog, off, goals, times, t_e = D.draw_group(row, seed, proto, dt)
     sess = TR.session_params(seed, session)
     arm = TR.arm_params(sess)
     sv = TR.servo_params(seed)
-    prog = draw_program(row, r, proto)
-    target = None
-    if has_target(row):
-        if row["evidence_set"] == "delay_sweep":
-            off = r.normal(0, 0.01, 3)
-        else:
-            off = r.normal(0, 0.05, 3)
-        target = place_target(prog["bearing"], off, dt, proto)
-    if prog["kind"] == "burst":
-        goals, times = P.burst(prog["section"], prog["bearing"], prog["amplitude"], dt)
-    elif prog["kind"] == "direct":
-        goals, times = P.direct_release(prog, prog["bearing"], dt, proto)
-    else:
-        goals, times = P.primitive(prog, prog["bearing"], dt, proto, ramp_s=prog.get("ramp_s", 0.0))
+    target = None if off is None else place_target(prog["bearing"], off, dt, proto)
     shaft = SV.present_from_goal(goals, dt, np.array(sv["rate"]), np.array(sv["tau"]))
     wrench, held = None, {}
-    if row["evidence_set"] == "held_base":
-        t_e = round(float(r.uniform(times["t_preload"] + 0.5, times["t_s1"] + 0.6)), 4)
+    if t_e is not None:
         wrench, held = hold_wrench(np.arange(1, len(goals) + 1) * dt, t_e, hold, r)
         prog.update(held)  # what the operator did (the label is when)
         held = dict(base_event_t=t_e)
@@ -211,7 +136,7 @@ def simulate_group(
         labels=labels,
     )
     if target is not None:
-        meta["target"] = dict(size_m=[2 * h for h in BLOCK_HALF], face="+z")
+        meta["target"] = dict(size_m=list(D.BLOCK_SIZE_M), face=D.BLOCK_FACE)
     return meta, mc, sl
 
 

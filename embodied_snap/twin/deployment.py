@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import rawformat as RF
+from ..acquisition.draws import rng_for
 from ..deploy import client
 from ..io import parquet_rows
 from . import mocap as MC
@@ -52,7 +53,7 @@ def rig(man: dict, placement: int, session: str, seed: int, dt: float, gid: str,
     sess = TR.session_params(seed, session)
     pl = man["placements"][placement - 1]
     target = block_at(pl["target_m"], pl["normal"])
-    r = TR.rng_for(seed, "deployment", gid)
+    r = rng_for(seed, "deployment", gid)
     arm = dict(TR.arm_params(sess), block_mass=TR.BLOCK["mass_kg"])
     st = Stepper(arm, TR.servo_params(seed), dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r, block=TR.BLOCK)
     bus = VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults)

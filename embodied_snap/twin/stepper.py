@@ -9,7 +9,8 @@ servo's unloaded loop response (the "shaft") follows its goal as in servo.presen
 stands still while torque is off or after its watchdog stopped it (the gearbox holds). Present
 position and current come from the simulation: the shaft minus the loop's deflection under the cable
 tension, and the current of that tension (servo.py). `present`/`current_ma` read the last step, so
-the bus may answer from another thread while `advance` runs.
+the bus may answer from another thread while `advance` runs. `wrench` (optional): external forces
+on the mount and the proximal segment, as sim.run's (MuJoCo xfrc_applied), asked for each step.
 """
 
 from __future__ import annotations
@@ -18,13 +19,17 @@ import threading
 
 import numpy as np
 
+from . import model as M
 from . import servo as SV
 from . import sim
 
 
 class Stepper:
     def __init__(self, arm: dict, servo: dict, dt: float, latch: dict, target: dict | None = None,
-                 seal: dict | None = None, rng: np.random.Generator | None = None, block: dict | None = None):
+                 seal: dict | None = None, rng: np.random.Generator | None = None, block: dict | None = None,
+                 wrench=None):
+        """wrench: None, or wrench(t) -> {"mount": (3,), "proximal": (3,)} N in the arm frame (or None:
+        no force) for the step that ends at trial time t."""
         self.dt = dt
         self.rate = np.minimum(np.asarray(servo["rate"], float), SV.RATE_RATED)
         self.a = dt / np.asarray(servo["tau"], float)
@@ -40,6 +45,13 @@ class Stepper:
         self._events: list[tuple[float, str, int, float]] = []  # (t, what, servo, value), appended by the bus
         self._ev_lock = threading.Lock()
         self.rng = rng or np.random.default_rng(0)
+        self.wrench = wrench
+        if wrench is not None:
+            import mujoco
+
+            m = self.sim.m
+            self._pushed = [(mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name), key)
+                            for name, key in (("base", "mount"), (M.PROXIMAL, "proximal"))]
 
     def _at(self, t: float | None, what: str, i: int, value: float = 0.0) -> None:
         with self._ev_lock:
@@ -67,10 +79,17 @@ class Stepper:
             d = np.where(self.powered, np.clip((self.goal - self.w) * self.a, -step, step), 0.0)
             self.w = self.w + d
             self.rows.append(self.w)
+            if self.wrench is not None:
+                self._push(self.t + self.dt)
             self._present = self.sim.step(self.w).copy()
             self._tension = -self.sim.force[self.sim.i - 1]
             self.moving = (np.abs(d) > 0.2 * step).astype(float)
             self.t += self.dt
+
+    def _push(self, t: float) -> None:
+        f = self.wrench(t)
+        for bid, key in self._pushed:
+            self.sim.d.xfrc_applied[bid, :3] = 0.0 if f is None else f[key]
 
     def set_goal(self, i: int, goal: float, t: float | None = None) -> None:
         self._at(t, "goal", i, goal)

@@ -5,14 +5,13 @@ The pipeline never reads this (rule: only the twin validation report compares fi
 
 from __future__ import annotations
 
-import zlib
-
 import numpy as np
 
+from ..acquisition import programs as P
+from ..acquisition.draws import rng_for
 from ..quat import from_rotvec as quat_from_rotvec
 from ..quat import qmul
 from . import model as M
-from . import protocols as P
 from . import servo as SV
 from . import sim
 
@@ -32,12 +31,6 @@ SEAL = dict(gap_m=0.03, overlap_m=0.02, speed_mps=1.2, tilt_deg=120.0)
 # pulls it with more than its weight (0.49 N); the 20 mm Ecoflex cup lets go above hold_n.
 BLOCK = dict(mass_kg=0.05, release_n=0.05 * 9.81, hold_n=3.0)
 BASE_LAB = (0.0, 1.45, 0.0)  # m: the arm's mount in the lab, Y up
-
-
-def rng_for(seed: int, *key) -> np.random.Generator:
-    """Independent stream per key: strings hashed with crc32 (stable across runs and machines)."""
-    ints = [int(seed)] + [zlib.crc32(str(k).encode()) for k in key]
-    return np.random.default_rng(ints)
 
 
 def session_index(session: str) -> int:

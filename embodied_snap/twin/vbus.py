@@ -141,6 +141,7 @@ class VirtualBus:
             s.put(CT.MAX_POSITION_LIMIT, CT.unsigned(CT.signed(s.get(CT.MAX_POSITION_LIMIT), 4) + 100, 4))
         self.goal_log: list[tuple[float, int, int, bool]] = []  # (trial time s, id, goal, applied)
         self.t0: float | None = None  # wall time of the first goal written with torque on
+        self.first_goal_t: float | None = None  # ... on the trial clock (where a program's time starts)
         self.last_rx = time.monotonic()
         self.last_rx_t = 0.0  # trial clock of the last instruction packet
         self.tx_bytes = self.rx_bytes = 0
@@ -296,6 +297,7 @@ class VirtualBus:
             apply = s.torque and not s.watchdog_fired and not s.hw_error
             if apply and self.t0 is None:
                 self.t0 = time.monotonic()
+                self.first_goal_t = self.now()
             self.goal_log.append((self.now(), s.i + 1, goal, apply))
             if apply:
                 self.stepper.set_goal(s.i, goal, self.now())

@@ -1,10 +1,10 @@
-"""What the operator commands in each evidence set: nine servo-goal traces plus the program record.
+"""What each evidence set commands: nine servo-goal traces (ticks, seconds) and their phase times.
 
-Everything is in servo ticks and seconds. The goal map itself (the Eq. 1 preload map and the
-instantaneous release) is the primitive's, shared with the pipeline: embodied_snap.primitive. The
-protocol numbers config carries (the canonical bearing, the S2 ramp, the policy ranges, the rated
-servo speed the ramps are planned under) come in as a `Protocol` (embodied_snap.protocol); what
-stays here is the simulated operator's own choice of programs.
+The same traces drive the simulated rig and the lab's arm (`esnap lab acquire`). The goal map itself
+(the Eq. 1 preload map and the instantaneous release) is the primitive's, shared with the pipeline:
+embodied_snap.primitive. The protocol numbers config carries (the canonical bearing, the S2 ramp,
+the policy ranges, the rated servo speed the ramps are planned under) come in as a `Protocol`
+(embodied_snap.protocol); what stays here is the acquisition's own choice of programs.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from ..primitive import release_goals, section_goals
 from ..protocol import Protocol
 
 PLAN_MARGIN = 0.9  # preload ramps are planned at this fraction of the rated speed: under the ceiling
-# The simulated operator's operating point: where release-mode, sweep and held-base trials sit
+# The acquisition's operating point: where release-mode, sweep and held-base trials sit
 # (the pipeline finds its own operating point from P_snap; config has none).
 OPERATING = dict(rho1=3100.0, rho2=2750.0, rho3=2900.0, s3=30.0, dphi=0.0, tau=0.55)
 SWEEP_LOW = (0.15, 0.30)  # delay-sweep delays; none in (0.30, 0.45), as in the paper
@@ -125,3 +125,12 @@ def burst(section: int, bearing: float, amp: float, dt: float):
     goals = np.zeros((len(t), 9))
     goals[(t >= t_up) & (t < t_dn)] = W
     return goals, dict(t_up=t_up, t_down=t_dn)
+
+
+def goals_of(prog: dict, dt: float, proto: Protocol):
+    """The goal trace (T, 9) at step dt and the phase times of a drawn program (draws.draw_program)."""
+    if prog["kind"] == "burst":
+        return burst(prog["section"], prog["bearing"], prog["amplitude"], dt)
+    if prog["kind"] == "direct":
+        return direct_release(prog, prog["bearing"], dt, proto)
+    return primitive(prog, prog["bearing"], dt, proto, ramp_s=prog.get("ramp_s", 0.0))

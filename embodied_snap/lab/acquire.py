@@ -1,0 +1,192 @@
+"""`esnap lab acquire`: a plan's groups recorded on the arm, one at a time, as the operator works.
+
+Each group: the operator's step is shown and confirmed, the group's program (drawn again from the
+plan and checked against it) is played through esnap deploy's own client and preflight (model
+number, operating mode, EEPROM limits, watchdog, torque off whatever happens), and the servo log
+and meta.json are written into the session folder as a group folder `esnap import` completes with
+the capture system's take of the same name. Every argument and every group's goals are checked
+before the port opens. A recorded group is never written again; an aborted one (Ctrl-C, a servo
+fault, a lost port) stops the session with one line and leaves `aborted/<group_id>.json`, and the
+next run resumes at the first group without a servo log.
+
+The session folder:
+
+    <out>/groups/<group_id>/servo.parquet, meta.json   what the servo PC ran and logged
+    <out>/aborted/<group_id>.json                      why a group stopped
+    <out>/<session>.yaml                               esnap import's session file (captures: takes)
+    <out>/takes/                                       where the capture system's takes go, named by group id
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as _dt
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..deploy import client
+from ..deploy.commands import RefusedTarget, check_envelope
+from ..io import read_parquet
+from .plan import PlanError, group_goals, load
+
+CAPTURES = "takes"  # the session folder's folder for the capture system's takes
+
+
+class LabError(ValueError):
+    """One line: what was refused before the arm moved, or why a session stopped."""
+
+
+class LabArgumentError(LabError):
+    """A bad command-line argument (--from, --baud, --out)."""
+
+
+def recorded(out: Path, gid: str) -> bool:
+    d = Path(out) / "groups" / gid
+    return (d / "servo.parquet").is_file() and (d / "meta.json").is_file()
+
+
+def checked(plan_path, out, start: str | None, baud: int | None):
+    """(plan, its groups from the first to record, goals per group id, baud): everything refused
+    here, before any port opens."""
+    try:
+        doc = load(plan_path)
+    except PlanError as e:
+        raise LabError(str(e)) from None
+    ids = [e["group_id"] for e in doc["groups"]]
+    try:
+        client.checked_servo_ids(doc)
+        baud = client.checked_baud(doc, baud)
+    except client.ArgumentError as e:
+        raise LabArgumentError(str(e)) from None
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise LabArgumentError(f"--out {out}: not a folder")
+    if start is not None:
+        if start not in ids:
+            raise LabArgumentError(f"--from {start}: not a group of {plan_path} ({ids[0]} .. {ids[-1]})")
+        if recorded(out, start):
+            raise LabArgumentError(f"--from {start}: already recorded in {out}/groups/{start} (a recorded group is "
+                                   "never overwritten: move its folder away to record it again)")
+        todo = doc["groups"][ids.index(start):]
+    else:
+        todo = [e for e in doc["groups"] if not recorded(out, e["group_id"])]
+    goals = {}
+    for e in todo:
+        try:
+            g, _ = group_goals(doc, e)
+            check_envelope(doc, g)
+        except (PlanError, RefusedTarget) as err:
+            raise LabError(f"{plan_path}: group {e['group_id']}: {err}") from None
+        goals[e["group_id"]] = g
+    return doc, [e for e in todo if not recorded(out, e["group_id"])], goals, baud
+
+
+def cue_cycle(entry: dict, hz: float) -> int | None:
+    """The bus cycle on which the held-base cue sounds (None: no cue)."""
+    return None if "cue_s" not in entry else int(np.ceil(entry["cue_s"] * hz - 1e-9))
+
+
+def group_meta(doc: dict, entry: dict, log: np.ndarray, k_cue: int | None) -> dict:
+    meta = dict(format_version=1, group_id=entry["group_id"], evidence_set=entry["evidence_set"],
+                category=entry["category"], session=entry["session"],
+                recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",
+                program=entry["program"], labels=dict(entry["phases"]), events={},
+                plan_sha256=doc["checksum"], protocol_version=doc["protocol_version"])
+    if k_cue is not None:  # when the cue sounded, on the servo log's clock
+        meta["events"]["base_event_t"] = round(float(log[min(k_cue, len(log) - 1), 0]), 4)
+    if "target" in entry:
+        meta["target"] = dict(size_m=entry["target"]["size_m"], face=entry["target"]["face"])
+    return meta
+
+
+def ask_labels(entry: dict, ask) -> dict:
+    """The operator's outcome labels (y/n; Enter leaves it for the session's label sheet)."""
+    out = {}
+    for k in entry["labels"]:
+        while True:
+            a = ask(f"{entry['group_id']}: {k}? [y/n, Enter: later, on the label sheet] ").strip().lower()
+            if a in ("y", "n", ""):
+                break
+        if a:
+            out[k] = a == "y"
+    return out
+
+
+def write_session_files(doc: dict, out: Path) -> list[Path]:
+    """One session file per session with recorded groups: esnap import's, the takes matched by name."""
+    files = []
+    for s in sorted({e["session"] for e in doc["groups"]}):
+        takes = [dict(servo=f"groups/{e['group_id']}") for e in doc["groups"]
+                 if e["session"] == s and recorded(out, e["group_id"])]
+        if takes:
+            p = out / f"{s}.yaml"
+            tmp = p.with_suffix(".yaml.tmp")
+            tmp.write_text(yaml.safe_dump(dict(session=s, captures=CAPTURES, takes=takes), sort_keys=False))
+            os.replace(tmp, p)
+            files.append(p)
+    return files
+
+
+def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False, baud: int | None = None,
+            ask=input, say=print, rig=None) -> dict:
+    """Record the plan's groups from `start` (default: the first not recorded). `port`: the serial
+    port; `rig(entry)`, if given, a context manager yielding the port of that group instead (the
+    simulated rig's virtual bus). Returns {recorded: [...], skipped: [...]}; raises LabError (one
+    line) when refused or aborted, after torque went off."""
+    doc, todo, goals, baud = checked(plan_path, out, start, baud)
+    out = Path(out)
+    (out / CAPTURES).mkdir(parents=True, exist_ok=True)
+    hz = float(doc["servos"]["hz"])
+    done, skipped = [], []
+    say(f"{len(todo)} groups to record ({len(doc['groups']) - len(todo)} of {len(doc['groups'])} already in {out})")
+    for n, entry in enumerate(todo, 1):
+        gid = entry["group_id"]
+        say(f"[{n}/{len(todo)}] {gid} ({entry['evidence_set']}/{entry['category']}, session {entry['session']}, "
+            f"{entry['duration_s']:.1f} s): {entry['operator']}")
+        if not yes:
+            a = ask("Enter: run it, s: skip, q: stop the session ").strip().lower()
+            if a == "q":
+                break
+            if a == "s":
+                skipped.append(gid)
+                continue
+        k_cue = cue_cycle(entry, hz)
+        on_cycle = None
+        if k_cue is not None:
+            def on_cycle(k, t, k_cue=k_cue):
+                if k == k_cue:
+                    say("\a>>> PUSH THE MOUNT NOW")
+        ctx = rig(entry) if rig is not None else contextlib.nullcontext(port)
+        with ctx as p:
+            log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle)
+            if cause is None:
+                client.write_trial(out, group_meta(doc, entry, log, k_cue), log)
+        if cause is not None:
+            client.write_aborted(out, gid, cause, failed, plan_sha256=doc["checksum"])
+            write_session_files(doc, out)
+            raise LabError(f"{gid}: {client.aborted_line(cause, failed)} (marked in {out}/aborted/{gid}.json; "
+                           "run again to record it)")
+        labels = ask_labels(entry, ask) if entry["labels"] and not yes else {}
+        if labels:
+            mp = out / "groups" / gid / "meta.json"
+            meta = json.loads(mp.read_text())
+            meta["labels"].update(labels)
+            client.write_meta(mp, meta)
+        done.append(gid)
+        write_session_files(doc, out)
+    left = [e["group_id"] for e in doc["groups"] if not recorded(out, e["group_id"])]
+    say(f"recorded {len(done)} groups; {len(left)} of the plan still to record"
+        + (f" (next: {left[0]})" if left else "; put the capture system's takes in "
+           f"{out / CAPTURES} named by group id and run esnap import on each session file"))
+    return dict(recorded=done, skipped=skipped, left=left)
+
+
+def servo_log_end(out: Path, gid: str) -> float | None:
+    """The last servo-log time of a recorded group (None: not recorded)."""
+    if not recorded(out, gid):
+        return None
+    return float(read_parquet(Path(out) / "groups" / gid / "servo.parquet")["t"].iloc[-1])
