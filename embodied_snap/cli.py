@@ -349,6 +349,8 @@ def cmd_lab_plan(a) -> int:
         raise UsageError(f"--out {out}: a directory; give the plan file to write")
     if out.exists() and not a.force:
         raise UsageError(f"--out {out}: exists (a plan being recorded is never rewritten; --force to replace it)")
+    if not out.absolute().parent.is_dir():
+        raise UsageError(f"--out {out}: {out.absolute().parent} is not a directory")
     proto = None
     if not a.no_targets:
         from . import protocol

@@ -58,9 +58,14 @@ def assert_one_line(argv, rc, err) -> None:
 
 # --- the parser, walked -------------------------------------------------------------------------------
 
-def subcommands() -> dict[str, argparse.ArgumentParser]:
-    sp = next(a for a in cli.parser()._actions if isinstance(a, argparse._SubParsersAction))
-    return dict(sp.choices)
+def subcommands(parser=None, prefix="") -> dict[str, argparse.ArgumentParser]:
+    """Every (sub)command that takes arguments, nested ones by their words ("lab acquire")."""
+    out = {}
+    sp = next(a for a in (parser or cli.parser())._actions if isinstance(a, argparse._SubParsersAction))
+    for name, sub in sp.choices.items():
+        nested = any(isinstance(a, argparse._SubParsersAction) for a in sub._actions)
+        out.update(subcommands(sub, f"{prefix}{name} ") if nested else {f"{prefix}{name}": sub})
+    return out
 
 
 SUBS = subcommands()
@@ -114,7 +119,7 @@ def bad_argv(draw):
     name = draw(st.sampled_from(sorted(SUBS)))
     sub = SUBS[name]
     flags = draw(st.lists(st.sampled_from(_flags(sub)), unique=True)) if _flags(sub) else []
-    return [name, *flags, *draw(st.sampled_from(parse_errors(sub)))]
+    return [*name.split(), *flags, *draw(st.sampled_from(parse_errors(sub)))]
 
 
 @st.composite
@@ -124,11 +129,12 @@ def hostile_argv(draw):
     flags = draw(st.lists(st.sampled_from(_flags(sub)), unique=True)) if _flags(sub) else []
     picked = draw(st.lists(st.sampled_from(hostile(sub)), min_size=1, max_size=3, unique_by=lambda x: x[0]))
     pos = [v for opt, v in picked if opt is None]
-    return [name, *pos, *flags, *[x for opt, v in picked if opt for x in (opt, v)]]
+    return [*name.split(), *pos, *flags, *[x for opt, v in picked if opt for x in (opt, v)]]
 
 
 def test_every_subcommand_is_generated():
-    assert {"twin", "validate", "seal", "audit", "check-separation", "deploy", "claims"} <= set(SUBS)
+    assert {"twin", "validate", "seal", "audit", "check-separation", "deploy", "claims", "lab plan",
+            "lab acquire"} <= set(SUBS)
     assert all(parse_errors(s) for s in SUBS.values())
 
 

@@ -163,3 +163,19 @@ def test_plan_refuses_to_overwrite_and_a_bad_budget(capsys, tmp_path):
     assert rc == 2 and "exists" in line and out.read_text() == "recorded against"
     rc, line = lab(capsys, "plan", "--budget", "huge", "--out", str(tmp_path / "q.yaml"))
     assert rc == 2 and "--budget huge: not a budget" in line
+
+
+def test_session_files_list_the_recorded_groups_and_name_a_label_sheet(smoke_plan, tmp_path):
+    doc, _ = smoke_plan
+    s01 = [e["group_id"] for e in doc["groups"] if e["session"] == "s01"]
+    for gid in s01[:2]:
+        (tmp_path / "groups" / gid).mkdir(parents=True)
+        (tmp_path / "groups" / gid / "servo.parquet").write_bytes(b"")
+        (tmp_path / "groups" / gid / "meta.json").write_text("{}")
+    (files,) = [LA.write_session_files(doc, tmp_path)]
+    assert files == [tmp_path / "s01.yaml"]
+    got = yaml.safe_load(files[0].read_text())
+    assert got == dict(session="s01", captures=LA.CAPTURES, takes=[dict(servo=f"groups/{g}") for g in s01[:2]])
+    (tmp_path / "s01_labels.csv").write_text("group_id,attached\n")
+    LA.write_session_files(doc, tmp_path)
+    assert yaml.safe_load(files[0].read_text())["labels"] == "s01_labels.csv"

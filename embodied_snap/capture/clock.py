@@ -147,7 +147,7 @@ def estimate_offset(
     if i == 0 or i == len(r) - 1 or not np.isfinite(r[i - 1] + r[i + 1]):
         raise CaptureError(
             source, f"the correlation of {motion_name} and {command_name} peaks at the edge of the "
-            f"searched shifts ({shift[i]:.3f} s): the best shift may lie outside {guess_s:g} +- {max_shift_s:g} s"
+            f"searched shifts ({shift[i]:.3f} s): the best shift may lie outside {guess_s:.3f} +- {max_shift_s:g} s"
         )
 
     a, b, c = r[i - 1], r[i], r[i + 1]

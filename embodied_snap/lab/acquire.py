@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +29,7 @@ import yaml
 
 from ..deploy import client
 from ..deploy.commands import RefusedTarget, check_envelope
+from ..files import write_text
 from ..io import read_parquet
 from .plan import PlanError, group_goals, load
 
@@ -117,16 +117,18 @@ def ask_labels(entry: dict, ask) -> dict:
 
 
 def write_session_files(doc: dict, out: Path) -> list[Path]:
-    """One session file per session with recorded groups: esnap import's, the takes matched by name."""
+    """One session file per session with recorded groups: esnap import's, the takes matched by name,
+    and the label sheet `<session>_labels.csv` when the session folder has one."""
     files = []
     for s in sorted({e["session"] for e in doc["groups"]}):
         takes = [dict(servo=f"groups/{e['group_id']}") for e in doc["groups"]
                  if e["session"] == s and recorded(out, e["group_id"])]
         if takes:
             p = out / f"{s}.yaml"
-            tmp = p.with_suffix(".yaml.tmp")
-            tmp.write_text(yaml.safe_dump(dict(session=s, captures=CAPTURES, takes=takes), sort_keys=False))
-            os.replace(tmp, p)
+            doc_s = dict(session=s, captures=CAPTURES, takes=takes)
+            if (out / f"{s}_labels.csv").is_file():  # the operator's sheet, where labels were left for later
+                doc_s = dict(session=s, labels=f"{s}_labels.csv", captures=CAPTURES, takes=takes)
+            write_text(p, yaml.safe_dump(doc_s, sort_keys=False))
             files.append(p)
     return files
 
@@ -178,6 +180,7 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
             client.write_meta(mp, meta)
         done.append(gid)
         write_session_files(doc, out)
+    write_session_files(doc, out)
     left = [e["group_id"] for e in doc["groups"] if not recorded(out, e["group_id"])]
     say(f"recorded {len(done)} groups; {len(left)} of the plan still to record"
         + (f" (next: {left[0]})" if left else "; put the capture system's takes in "

@@ -21,6 +21,7 @@ from ..acquisition import draws as D
 from ..capture.importer import MEASURED_LABELS
 from ..deploy import controltable as CT
 from ..deploy.manifest import SERVO_IDS
+from ..files import write_text
 from ..plan import twin_plan
 from ..protocol import from_params, params
 from ..rawformat import CATEGORIES, EVIDENCE_SETS
@@ -138,7 +139,7 @@ def build(config: dict, budget: str, place=None) -> dict:
 
 
 def write(doc: dict, path) -> None:
-    Path(path).write_text(
+    write_text(path,
         f"# esnap lab plan: {len(doc['groups'])} groups of the {doc['budget']} budget, in the order they are "
         "recorded.\n# Do not edit: the checksum covers every line (esnap lab acquire refuses an edited plan).\n"
         + yaml.safe_dump(doc, sort_keys=False, width=110, default_flow_style=None))
