@@ -52,7 +52,7 @@ def workflow_copy(dest: Path) -> Path:
     return dest
 
 
-def clock_estimates(sessions: Path, lab_path: Path, work: Path) -> str:
+def clock_estimates(sessions: Path, lab_path: Path, work: Path, rate_hz: float) -> str:
     """Every take's clock estimated from the data (no sync; nothing written): the offsets found
     against the true one (0 s to within 1 ms here) and the takes refused."""
     import numpy as np
@@ -75,13 +75,14 @@ def clock_estimates(sessions: Path, lab_path: Path, work: Path) -> str:
         print(f"  clock refused: {line}")
     return (f"clock from the data, no sync, {len(got) + len(refused)} takes: {len(refused)} refused; |offset error| "
             f"median {np.median(e):.1f} ms, p90 {np.percentile(e, 90):.1f} ms, max {e.max():.1f} ms, within one "
-            f"120 Hz frame (8.3 ms) {int((e <= 1e3 / 120).sum())} of {len(e)}")
+            f"{rate_hz:g} Hz frame ({1e3 / rate_hz:.1f} ms) {int((e <= 1e3 / rate_hz).sum())} of {len(e)}")
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("work")
     ap.add_argument("--budget", default="smoke")
+    ap.add_argument("--capture-hz", type=float, default=120, help="the rate the takes are exported at")
     ap.add_argument("--native", help="a finished native run of the budget (its results/tables/claims.csv)")
     a = ap.parse_args()
     import yaml
@@ -98,7 +99,7 @@ def main() -> int:
     if not plan.exists():
         times["plan"] = run([BIN / "esnap", "lab", "plan", "--budget", a.budget, "--out", plan], work)
     sessions = work / "sessions"
-    lab = SimLab(plan, sessions)
+    lab = SimLab(plan, sessions, capture_hz=a.capture_hz)
     t, aborts = time.time(), []
     while True:  # resume after an abort, as the operator would
         try:
@@ -106,7 +107,7 @@ def main() -> int:
         except LabError as e:
             aborts.append(str(e))
             print(f"abort, resuming: {e}", flush=True)
-            lab = SimLab(plan, sessions)
+            lab = SimLab(plan, sessions, capture_hz=a.capture_hz)
             continue
         if not got["left"]:
             break
@@ -118,7 +119,7 @@ def main() -> int:
     labfile, nosync = work / "lab.yaml", work / "lab_nosync.yaml"
     labfile.write_text(yaml.safe_dump(lab_doc("rigid_body", dict(sync=dict(event_time_s=0.0), max_drift_ppm=100))))
     nosync.write_text(yaml.safe_dump(lab_doc("rigid_body", dict(sync="none", max_drift_ppm=100))))
-    clock = clock_estimates(sessions, nosync, work)
+    clock = clock_estimates(sessions, nosync, work, a.capture_hz)
     raw = "lab/recordings"
     t = time.time()
     for s in sorted(sessions.glob("s*.yaml")):

@@ -35,7 +35,8 @@ class SimLab:
     labels as the rig saw them)."""
 
     def __init__(self, plan: Path, out: Path, faults: dict | None = None, sessions=None,
-                 stop_after: int | None = None):
+                 stop_after: int | None = None, capture_hz: float = CAPTURE_HZ):
+        self.capture_hz = capture_hz
         self.out, self.faults, self.sessions, self.stop_after = Path(out), dict(faults or {}), sessions, stop_after
         self.results: dict[str, dict] = {}
         self.current: dict | None = None
@@ -75,7 +76,7 @@ class SimLab:
                 res = r.finish(None if t_end is None else t_end + 0.005)
                 self.results[gid] = res
                 if t_end is not None:
-                    write_motive_csv(res["mocap"], self.out / LA.CAPTURES / f"{gid}.csv", rate_hz=CAPTURE_HZ,
+                    write_motive_csv(res["mocap"], self.out / LA.CAPTURES / f"{gid}.csv", rate_hz=self.capture_hz,
                                      take_name=gid)
 
     def acquire(self, **kw) -> dict:
