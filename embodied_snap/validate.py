@@ -233,14 +233,20 @@ def _check_servo(servo: pd.DataFrame, mocap: pd.DataFrame, path, gid: str, lim: 
             f"servo log spans {ts[0]:.3f}..{ts[-1]:.3f} s, mocap {tm[0]:.3f}..{tm[-1]:.3f} s",
             "servo log covers mocap",
         )
+    check_servo_gaps(ts, path, gid, lim.max_servo_gap_s)
+
+
+def check_servo_gaps(ts: np.ndarray, path, gid: str, max_gap_s: float) -> None:
+    """No interval between sync-reads longer than max_gap_s (config gate.max_servo_gap_s); also
+    what `esnap lab acquire` asks of a log as soon as it is recorded."""
     dt = np.diff(ts)
     k = int(np.argmax(dt))
-    if dt[k] > lim.max_servo_gap_s + 1e-9:
+    if dt[k] > max_gap_s + 1e-9:
         raise RecordingError(
             path,
             gid,
             f"no sync-read for {dt[k]:.3f} s from t={ts[k]:.3f} to t={ts[k + 1]:.3f} s",
-            f"servo log gap <= {lim.max_servo_gap_s:g} s",
+            f"servo log gap <= {max_gap_s:g} s",
         )
 
 

@@ -164,3 +164,31 @@ def test_a_fault_stops_the_arm_marks_that_group_and_a_resumed_session_records_ex
     lab = SimLab(plan_path, tmp_path, stop_after=1)
     assert lab.acquire()["recorded"] == [second] and lab.ran == [second]
     assert fingerprint(tmp_path, first) == kept
+
+
+def test_a_log_the_gate_would_refuse_is_kept_aside_and_the_group_run_again(plan_path, tmp_path, monkeypatch):
+    """A busy PC can miss sync-reads: the log is checked against the gate's servo-log rule as soon as
+    it is recorded, kept in rejected/<attempt>/ and the group run again (the real rule: a log with
+    a gap of 5 cycles is refused)."""
+    real = LA.log_refused
+    calls = []
+
+    def first_refused(doc, log, out, gid):
+        calls.append(gid)
+        if len(calls) == 1:
+            log = log.copy()
+            log[len(log) // 2:, 0] += 0.05  # a 60 ms gap between two sync-reads
+        return real(doc, log, out, gid)
+
+    monkeypatch.setattr(LA, "log_refused", first_refused)
+    doc = LP.load(plan_path)
+    gid = doc["groups"][0]["group_id"]
+    lab = SimLab(plan_path, tmp_path, stop_after=2)
+    said = []
+    lab.say = lambda line, say=lab.say: (said.append(line), say(line))
+    got = lab.acquire()
+    assert got["recorded"] == [gid] and lab.ran == [gid, gid]
+    assert (tmp_path / "rejected" / "1" / "groups" / gid / "servo.parquet").is_file()
+    assert any(f"{gid}: the gate would refuse this servo log (no sync-read for 0.060 s" in x and
+               "(rule: servo log gap <= 0.05 s)" in x for x in said), said
+    assert LA.log_refused(doc, np.c_[np.arange(200) * 0.01, np.zeros((200, 27))], tmp_path, gid) is None

@@ -31,9 +31,12 @@ from ..deploy import client
 from ..deploy.commands import RefusedTarget, check_envelope
 from ..files import write_text
 from ..io import read_parquet
+from ..rawformat import RecordingError
+from ..validate import check_servo_gaps
 from .plan import PlanError, group_goals, load
 
 CAPTURES = "takes"  # the session folder's folder for the capture system's takes
+MAX_ATTEMPTS = 3  # a group whose servo log the gate refuses this often in a row stops the session
 
 
 class LabError(ValueError):
@@ -162,16 +165,29 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
             def on_cycle(k, t, k_cue=k_cue):
                 if k == k_cue:
                     say("\a>>> PUSH THE MOUNT NOW")
-        ctx = rig(entry) if rig is not None else contextlib.nullcontext(port)
-        with ctx as p:
-            log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle)
-            if cause is None:
-                client.write_trial(out, group_meta(doc, entry, log, k_cue), log)
-        if cause is not None:
-            client.write_aborted(out, gid, cause, failed, plan_sha256=doc["checksum"])
+        for attempt in range(1, MAX_ATTEMPTS + 1):
+            ctx = rig(entry) if rig is not None else contextlib.nullcontext(port)
+            with ctx as p:
+                log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle)
+                refused = None if cause is not None else log_refused(doc, log, out, gid)
+                if cause is None:  # a log the gate will refuse is kept aside, and the group run again
+                    where = out if refused is None else out / "rejected" / str(attempt)
+                    client.write_trial(where, group_meta(doc, entry, log, k_cue), log)
+            if cause is not None:
+                client.write_aborted(out, gid, cause, failed, plan_sha256=doc["checksum"])
+                write_session_files(doc, out)
+                raise LabError(f"{gid}: {client.aborted_line(cause, failed)} (marked in {out}/aborted/{gid}.json; "
+                               "run again to record it)")
+            if refused is None:
+                break
+            say(f"{gid}: the gate would refuse this servo log ({refused}); kept in {out}/rejected/{attempt}/, "
+                "run again" + ("" if yes else ": redo the operator's step"))
+            if not yes and ask("Enter: run it again, q: stop the session ").strip().lower() == "q":
+                return finish(doc, out, done, skipped, say)
+        else:
             write_session_files(doc, out)
-            raise LabError(f"{gid}: {client.aborted_line(cause, failed)} (marked in {out}/aborted/{gid}.json; "
-                           "run again to record it)")
+            raise LabError(f"{gid}: the gate refused its servo log {MAX_ATTEMPTS} times in a row ({refused}): the bus "
+                           "cannot keep the sync-read rate (docs/acquisition.md, a busy PC)")
         labels = ask_labels(entry, ask) if entry["labels"] and not yes else {}
         if labels:
             mp = out / "groups" / gid / "meta.json"
@@ -180,12 +196,26 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
             client.write_meta(mp, meta)
         done.append(gid)
         write_session_files(doc, out)
+    return finish(doc, out, done, skipped, say)
+
+
+def finish(doc: dict, out: Path, done: list, skipped: list, say) -> dict:
     write_session_files(doc, out)
     left = [e["group_id"] for e in doc["groups"] if not recorded(out, e["group_id"])]
     say(f"recorded {len(done)} groups; {len(left)} of the plan still to record"
         + (f" (next: {left[0]})" if left else "; put the capture system's takes in "
            f"{out / CAPTURES} named by group id and run esnap import on each session file"))
     return dict(recorded=done, skipped=skipped, left=left)
+
+
+def log_refused(doc: dict, log: np.ndarray, out: Path, gid: str) -> str | None:
+    """The gate's servo-log rule a recorded log breaks (validate.check_servo_gaps, under the plan's
+    gate.max_servo_gap_s), or None."""
+    try:
+        check_servo_gaps(log[:, 0], out / "groups" / gid / "servo.parquet", gid, doc["gate"]["max_servo_gap_s"])
+    except RecordingError as e:
+        return f"{e.what} (rule: {e.rule})"
+    return None
 
 
 def servo_log_end(out: Path, gid: str) -> float | None:

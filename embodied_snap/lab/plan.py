@@ -132,6 +132,7 @@ def build(config: dict, budget: str, place=None) -> dict:
                     baud=dep["baud"], hz=dep["servo_hz"], watchdog_ms=dep["watchdog_ms"],
                     reply_timeout_ms=dep["reply_timeout_ms"], reply_retries=dep["reply_retries"]),
         envelope=envelope(traces, dep["envelope_margin"]),
+        gate=dict(max_servo_gap_s=float(config["gate"]["max_servo_gap_s"])),  # checked as each log is recorded
         groups=entries,
     )
     doc["checksum"] = checksum(doc)
