@@ -58,3 +58,18 @@ def smoke_run(tmp_path_factory):
     # after it, and the next `snakemake all` rewrites it to list them (the Snakefile's `crate`).
     snakemake(d, "all")
     return d
+
+
+@pytest.fixture
+def no_port(monkeypatch):
+    """Opening a port, through the client or dynamixel-sdk itself, fails the test (a module that
+    refuses arguments before any port opens uses it for every test: `pytestmark`)."""
+    import dynamixel_sdk
+
+    from embodied_snap.deploy import client
+
+    def opened(*args, **kwargs):
+        pytest.fail("a port was opened")
+
+    monkeypatch.setattr(client, "Bus", opened)
+    monkeypatch.setattr(dynamixel_sdk.PortHandler, "openPort", opened)

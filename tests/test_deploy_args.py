@@ -20,16 +20,7 @@ _man = test_deploy._man
 man_path = test_deploy.man_path  # the deployment tests' manifest fixture, reused
 
 
-@pytest.fixture(autouse=True)
-def no_port(monkeypatch):
-    """Opening a port, through the client or dynamixel-sdk itself, fails the test."""
-    import dynamixel_sdk
-
-    def opened(*args, **kwargs):
-        pytest.fail("a port was opened")
-
-    monkeypatch.setattr(client, "Bus", opened)
-    monkeypatch.setattr(dynamixel_sdk.PortHandler, "openPort", opened)
+pytestmark = pytest.mark.usefixtures("no_port")  # conftest: opening a port fails the test
 
 
 def deploy(capsys, man_path, *args, port=True):

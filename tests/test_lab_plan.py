@@ -11,7 +11,6 @@ import pytest
 import yaml
 
 from embodied_snap.cli import main
-from embodied_snap.deploy import client
 from embodied_snap.lab import acquire as LA
 from embodied_snap.lab import plan as LP
 from embodied_snap.plan import twin_plan
@@ -29,16 +28,7 @@ def smoke_plan(tmp_path_factory):
     return doc, path
 
 
-@pytest.fixture(autouse=True)
-def no_port(monkeypatch):
-    """Opening a port, through the client or dynamixel-sdk itself, fails the test."""
-    import dynamixel_sdk
-
-    def opened(*args, **kwargs):
-        pytest.fail("a port was opened")
-
-    monkeypatch.setattr(client, "Bus", opened)
-    monkeypatch.setattr(dynamixel_sdk.PortHandler, "openPort", opened)
+pytestmark = pytest.mark.usefixtures("no_port")  # conftest: opening a port fails the test
 
 
 def test_the_plan_holds_the_budgets_groups_one_session_and_set_at_a_time(smoke_plan):

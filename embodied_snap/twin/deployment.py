@@ -124,17 +124,15 @@ def _serve(conn, man, placement, session, seed, dt, gid, faults, raw, k, speed_m
     conn.send(out)
 
 
-class Rig:
-    """The simulated rig of one trial in its own process: `with Rig(...) as port:` then `finish`."""
+class RigProcess:
+    """A rig in its own forked process, serving the virtual bus: `with rig as port:` (the bus's pty),
+    then `finish(t_end)`. `serve(conn, *args)` sends the port, waits for ("done", t_end) or
+    ("aborted", None), and sends back its record."""
 
-    def __init__(self, man: dict, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float,
-                 speed_mps: float = 1.0, faults: dict | None = None):
-        self.gid = f"{RF.PREFIX['deployment']}_{k:04d}"
-        session = f"s{(k - 1) % n_sessions + 1:02d}"  # session variation: trials spread over the sessions
-        self.conn, child = mp.get_context("fork").Pipe()
-        self.proc = mp.get_context("fork").Process(
-            target=_serve, args=(child, man, placement, session, seed, dt, self.gid, faults, str(raw), k, speed_mps),
-            daemon=True)
+    def __init__(self, serve, *args):
+        ctx = mp.get_context("fork")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=serve, args=(child, *args), daemon=True)
         self.result = None
 
     def __enter__(self) -> str:
@@ -151,6 +149,16 @@ class Rig:
 
     def __exit__(self, *exc):
         self.finish(None)
+
+
+class Rig(RigProcess):
+    """The simulated rig of one deployment trial."""
+
+    def __init__(self, man: dict, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float,
+                 speed_mps: float = 1.0, faults: dict | None = None):
+        self.gid = f"{RF.PREFIX['deployment']}_{k:04d}"
+        session = f"s{(k - 1) % n_sessions + 1:02d}"  # session variation: trials spread over the sessions
+        super().__init__(_serve, man, placement, session, seed, dt, self.gid, faults, str(raw), k, speed_mps)
 
 
 def run_trial(man_path, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float, speed_mps: float,

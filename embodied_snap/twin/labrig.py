@@ -13,7 +13,6 @@ the operator notes (attached, retrieved, snap_speed_event), as simulate_group do
 
 from __future__ import annotations
 
-import multiprocessing as mp
 import os
 
 import numpy as np
@@ -23,6 +22,7 @@ from ..protocol import Protocol
 from . import mocap as MC
 from . import truth as TR
 from .acquire import hold_wrench, place_target
+from .deployment import RigProcess
 from .stepper import Stepper
 from .vbus import VirtualBus
 
@@ -105,7 +105,7 @@ def _serve(conn, group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, t
     conn.send(out)
 
 
-class LabRig:
+class LabRig(RigProcess):
     """The simulated rig of one acquisition group in its own process: `with LabRig(...) as port:`
     (the virtual bus's pty), then `finish(t_end)` (the last servo-log time + 0.005 s, or None when
     the client aborted). finish returns the bus's record (goals: (n, 4) time, id, goal, applied;
@@ -120,24 +120,5 @@ class LabRig:
         off = group.get("target_offset_m")
         # placed here: the nominal strike is simulated once per process, not once per group
         target = None if off is None else place_target(group["program"]["bearing"], np.asarray(off, float), dt, proto)
-        ctx = mp.get_context("fork")
-        self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_serve, daemon=True,
-                                args=(child, dict(group), int(seed), float(dt), dict(hold), proto,
-                                      list(eeprom_min), list(eeprom_max), faults, target))
-        self.result = None
-
-    def __enter__(self) -> str:
-        self.proc.start()
-        return self.conn.recv()
-
-    def finish(self, t_end: float | None) -> dict:
-        """Tell the rig the group ended (t_end on the client's clock; None when aborted)."""
-        if self.result is None:
-            self.conn.send(("done", float(t_end)) if t_end is not None else ("aborted", None))
-            self.result = self.conn.recv()
-            self.proc.join(30)
-        return self.result
-
-    def __exit__(self, *exc):
-        self.finish(None)
+        super().__init__(_serve, dict(group), int(seed), float(dt), dict(hold), proto, list(eeprom_min),
+                         list(eeprom_max), faults, target)
