@@ -53,7 +53,9 @@ class SimLab:
         e = self.current
         if question.startswith("Enter: run it"):
             other = self.sessions is not None and e["session"] not in self.sessions
-            enough = self.stop_after is not None and len(self.ran) >= self.stop_after
+            # stop_after counts groups recorded (a run the gate's servo-log rule refused is run again)
+            done = {g for g in self.ran if LA.recorded(self.out, g)}
+            enough = self.stop_after is not None and len(done) >= self.stop_after
             return "q" if other or enough else ""
         label = question.split(": ", 1)[1].split("?")[0]
         return "y" if self.results[e["group_id"]][label] else "n"
