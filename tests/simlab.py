@@ -12,6 +12,7 @@ from pathlib import Path
 
 import yaml
 
+from embodied_snap.io import read_parquet
 from embodied_snap.lab import acquire as LA
 from embodied_snap.lab import plan as LP
 from embodied_snap.twin.labrig import LabRig
@@ -26,6 +27,13 @@ CAPTURE_HZ = 120  # the takes are exported at a lab's usual rate, in millimetres
 # The plan's bus settings with a generous reply timeout and watchdog, as tests/test_deploy.py's: the
 # client and the virtual bus share a loaded CI machine, which may not run the bus for 20 ms.
 PLAN_CONFIG = dict(CONFIG, deployment=dict(CONFIG["deployment"], reply_timeout_ms=250, watchdog_ms=1000))
+
+
+def servo_log_end(out: Path, gid: str) -> float | None:
+    """The last servo-log time of a recorded group (None: not recorded)."""
+    if not LA.recorded(out, gid):
+        return None
+    return float(read_parquet(Path(out) / "groups" / gid / "servo.parquet")["t"].iloc[-1])
 
 
 class SimLab:
@@ -72,7 +80,7 @@ class SimLab:
             try:
                 yield port
             finally:
-                t_end = LA.servo_log_end(self.out, gid)
+                t_end = servo_log_end(self.out, gid)
                 if t_end is None:  # aborted: the arm stays on the bus until its watchdog has had time to fire
                     time.sleep(self.doc["servos"]["watchdog_ms"] / 1000 + 0.1)
                 res = r.finish(None if t_end is None else t_end + 0.005)

@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from .. import rawformat as RF
 from ..deploy import client
 from ..deploy.commands import RefusedTarget, check_envelope
 from ..files import write_text
-from ..io import read_parquet
 from ..rawformat import RecordingError
 from ..validate import check_servo_gaps
 from .plan import PlanError, group_goals, load
@@ -74,9 +74,8 @@ def checked(plan_path, out, start: str | None, baud: int | None):
         if recorded(out, start):
             raise LabArgumentError(f"--from {start}: already recorded in {out}/groups/{start} (a recorded group is "
                                    "never overwritten: move its folder away to record it again)")
-        todo = doc["groups"][ids.index(start):]
-    else:
-        todo = [e for e in doc["groups"] if not recorded(out, e["group_id"])]
+    first = ids.index(start) if start is not None else 0
+    todo = [e for e in doc["groups"][first:] if not recorded(out, e["group_id"])]
     goals = {}
     for e in todo:
         try:
@@ -85,7 +84,7 @@ def checked(plan_path, out, start: str | None, baud: int | None):
         except (PlanError, RefusedTarget) as err:
             raise LabError(f"{plan_path}: group {e['group_id']}: {err}") from None
         goals[e["group_id"]] = g
-    return doc, [e for e in todo if not recorded(out, e["group_id"])], goals, baud
+    return doc, todo, goals, baud
 
 
 def cue_cycle(entry: dict, hz: float) -> int | None:
@@ -94,7 +93,7 @@ def cue_cycle(entry: dict, hz: float) -> int | None:
 
 
 def group_meta(doc: dict, entry: dict, log: np.ndarray, k_cue: int | None) -> dict:
-    meta = dict(format_version=1, group_id=entry["group_id"], evidence_set=entry["evidence_set"],
+    meta = dict(format_version=RF.FORMAT_VERSION, group_id=entry["group_id"], evidence_set=entry["evidence_set"],
                 category=entry["category"], session=entry["session"],
                 recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",
                 program=entry["program"], labels=dict(entry["phases"]), events={},
@@ -128,9 +127,9 @@ def write_session_files(doc: dict, out: Path) -> list[Path]:
                  if e["session"] == s and recorded(out, e["group_id"])]
         if takes:
             p = out / f"{s}.yaml"
-            doc_s = dict(session=s, captures=CAPTURES, takes=takes)
-            if (out / f"{s}_labels.csv").is_file():  # the operator's sheet, where labels were left for later
-                doc_s = dict(session=s, labels=f"{s}_labels.csv", captures=CAPTURES, takes=takes)
+            sheet = f"{s}_labels.csv"  # the operator's sheet, where labels were left for later
+            doc_s = dict(session=s, **({"labels": sheet} if (out / sheet).is_file() else {}), captures=CAPTURES,
+                         takes=takes)
             write_text(p, yaml.safe_dump(doc_s, sort_keys=False))
             files.append(p)
     return files
@@ -217,9 +216,3 @@ def log_refused(doc: dict, log: np.ndarray, out: Path, gid: str) -> str | None:
         return f"{e.what} (rule: {e.rule})"
     return None
 
-
-def servo_log_end(out: Path, gid: str) -> float | None:
-    """The last servo-log time of a recorded group (None: not recorded)."""
-    if not recorded(out, gid):
-        return None
-    return float(read_parquet(Path(out) / "groups" / gid / "servo.parquet")["t"].iloc[-1])
