@@ -62,7 +62,12 @@ def envelope(rho_max, s3_max: float, carry_ticks: float, margin: float) -> dict:
             G += [w, w - np.r_[np.zeros(6), np.full(3, s3_max)]]
     g = np.asarray(G)
     carry = np.tile(carry_ticks * np.cos(np.deg2rad(bear[:, None] - np.array(CABLE_BEARINGS_DEG))), 3)
-    lo, hi = g.min(0) + np.minimum(carry.min(0), 0), g.max(0) + np.maximum(carry.max(0), 0)
+    return widened(g.min(0) + np.minimum(carry.min(0), 0), g.max(0) + np.maximum(carry.max(0), 0), margin)
+
+
+def widened(lo, hi, margin: float) -> dict:
+    """Per-servo goal limits lo .. hi widened by `margin` of each servo's span; the EEPROM limits the
+    same, rounded outward (the manifest's envelope, esnap lab's plan)."""
     pad = margin * (hi - lo)
     lo, hi = lo - pad, hi + pad
     return dict(margin_fraction=margin, goal_min=np.round(lo, 1).tolist(), goal_max=np.round(hi, 1).tolist(),

@@ -20,7 +20,7 @@ import yaml
 from ..acquisition import draws as D
 from ..capture.importer import MEASURED_LABELS
 from ..deploy import controltable as CT
-from ..deploy.manifest import SERVO_IDS
+from ..deploy.manifest import SERVO_IDS, widened
 from ..files import write_text
 from ..plan import twin_plan
 from ..protocol import from_params, params
@@ -90,11 +90,7 @@ def envelope(goals: list[np.ndarray], margin: float) -> dict:
     """Per-servo goal limits: every goal the plan commands, widened by `margin` of each servo's span
     (as the deployment manifest's envelope); EEPROM limits the same, rounded outward."""
     g = np.vstack([np.zeros((1, 9))] + list(goals))
-    lo, hi = g.min(0), g.max(0)
-    pad = margin * (hi - lo)
-    lo, hi = lo - pad, hi + pad
-    return dict(margin_fraction=margin, goal_min=np.round(lo, 1).tolist(), goal_max=np.round(hi, 1).tolist(),
-                eeprom_min=np.floor(lo).astype(int).tolist(), eeprom_max=np.ceil(hi).astype(int).tolist())
+    return widened(g.min(0), g.max(0), margin)
 
 
 def build(config: dict, budget: str, place=None) -> dict:
