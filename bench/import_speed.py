@@ -74,7 +74,7 @@ def main(argv=None):
                 try:
                     err.append(build_group(spec, lab, cfg)[0]["clock"]["offset_s"] - (OFFSET_S - 0.001))
                 except CaptureError as e:
-                    bad.append(f"{spec.meta['group_id']}: {e.rule}")
+                    bad.append(f"{spec.meta['group_id']}: {e.line}")
         dt = time.perf_counter() - t
         err, frame = np.array(err) * 1e3, 1e3 / a.rate
         print(f"clock fit on {len(err) + len(bad)} takes in {dt:.1f} s: {len(bad)} refused; offset error (ms) median "

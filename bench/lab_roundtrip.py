@@ -69,7 +69,7 @@ def clock_estimates(sessions: Path, lab_path: Path, work: Path, rate_hz: float) 
             try:
                 got.append(build_group(spec, lab, cfg)[0]["clock"]["offset_s"])
             except CaptureError as e:
-                refused.append(f"{spec.meta['group_id']}: {e.rule}")
+                refused.append(f"{spec.meta['group_id']}: {e.line}")
     e = np.abs(np.asarray(got)) * 1e3
     for line in refused:
         print(f"  clock refused: {line}")

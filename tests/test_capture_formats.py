@@ -186,12 +186,12 @@ def without(meta, key):
 @pytest.mark.parametrize(
     "meta, rule",
     [
-        (without(META, "Format Version"), "not a Motive export"),
-        (META | {"Format Version": "1.1"}, "format version '1.1' is not one of 1.21-1.25"),
-        (META | {"Rotation Type": "XYZ"}, "rotation type is 'XYZ', not Quaternion"),
-        (without(META, "Length Units"), "no Length Units"),
-        (META | {"Length Units": "Inches"}, "length units 'Inches' are not Millimeters, Centimeters or Meters"),
-        (META | {"Export Frame Rate": "200.000000"}, r"the Time column steps 0\.010000 s per frame, not 1/200"),
+        (without(META, "Format Version"), r"its first cell is not 'Format Version' \(rule: a Motive export opens"),
+        (META | {"Format Version": "1.1"}, r"format version '1\.1' \(rule: Motive format version 1\.21-1\.25\)"),
+        (META | {"Rotation Type": "XYZ"}, r"rotation type 'XYZ' \(rule: rotation type Quaternion\)"),
+        (without(META, "Length Units"), r"no Length Units in the metadata row \(rule: length units given\)"),
+        (META | {"Length Units": "Inches"}, r"length units 'Inches' \(rule: length units Millimeters"),
+        (META | {"Export Frame Rate": "200.000000"}, r"steps 0\.010000 s per frame, not 1/200 s \(rule: Time agrees"),
     ],
     ids=["no-format-version", "version", "euler", "no-units", "inches", "rate-vs-time"],
 )
@@ -203,20 +203,23 @@ def test_metadata_that_is_refused(tmp_path, meta, rule):
 def test_a_rigid_body_named_twice_is_refused(tmp_path):
     second = [(t, n, "C3", c, a) for t, n, _, c, a in BODY]
     rows = [r + r[2:9] for r in ROWS]
-    with pytest.raises(CaptureError, match="Rigid Body 'arm' appears twice"):
+    with pytest.raises(CaptureError, match=r"Rigid Body 'arm' appears twice \(a second .*\) \(rule: each body"):
         read_motive_csv(export(tmp_path, columns=BODY + MARKER + second, rows=rows))
 
 
 def test_an_unknown_column_type_is_refused(tmp_path):
     other = [("Trained Markerset", "m", "D4", "Position", a) for a in "XYZ"]
     rows = [r + ["1", "2", "3"] for r in ROWS]
-    with pytest.raises(CaptureError, match="column type 'Trained Markerset' is not one this reader knows"):
+    with pytest.raises(CaptureError, match=r"column type 'Trained Markerset' \(rule: column types "):
         read_motive_csv(export(tmp_path, columns=BODY + MARKER + other, rows=rows))
 
 
 @pytest.mark.parametrize(
     "order, rule",
-    [([0, 2, 1], "frames out of order: frame 1 after frame 2"), ([0, 1, 1], "frame 1 is duplicated")],
+    [
+        ([0, 2, 1], r"frames out of order: frame 1 after frame 2 \(rule: frames in order, each once\)"),
+        ([0, 1, 1], r"frame 1 is duplicated \(rule: frames in order, each once\)"),
+    ],
     ids=["out-of-order", "duplicated"],
 )
 def test_frames_out_of_order_or_duplicated_are_refused(tmp_path, order, rule):
@@ -226,13 +229,13 @@ def test_frames_out_of_order_or_duplicated_are_refused(tmp_path, order, rule):
 
 def test_a_last_row_with_fewer_cells_is_truncated(tmp_path):
     rows = ROWS[:2] + [ROWS[2][:8]]  # cut after a cell, line break kept
-    with pytest.raises(CaptureError, match="truncated: line 10 has 8 of the header's 12 cells"):
+    with pytest.raises(CaptureError, match=r"truncated: line 10 has 8 of the header's 12 cells \(rule: a complete"):
         read_motive_csv(export(tmp_path, rows=rows))
 
 
 def test_a_last_row_cut_mid_cell_is_truncated(tmp_path):
     # every cell there, the last one cut short: only the missing line break shows it
-    with pytest.raises(CaptureError, match="truncated: the last row does not end with a line break"):
+    with pytest.raises(CaptureError, match=r"the last row does not end with a line break \(rule: a complete file\)"):
         read_motive_csv(export(tmp_path, end=-3))
 
 
@@ -286,9 +289,9 @@ def test_a_small_c3d_reads(tmp_path):
 @pytest.mark.parametrize(
     "labels, units, rule",
     [
-        ([], "mm", "no point labels"),
-        (["a", "a"], "mm", "point label 'a' appears twice"),
-        (["a"], "in", "POINT:UNITS 'in' is not mm, cm or m"),
+        ([], "mm", r"no point labels \(POINT:LABELS is empty\) \(rule: markers are named by POINT:LABELS\)"),
+        (["a", "a"], "mm", r"point label 'a' appears twice \(rule: each marker named once\)"),
+        (["a"], "in", r"POINT:UNITS 'in' \(rule: length units mm, cm or m\)"),
     ],
     ids=["no-labels", "label-twice", "inches"],
 )

@@ -350,3 +350,21 @@ def test_a_servo_log_esnap_deploy_wrote_carries_the_take_s_identity(tmp_path, ca
     assert phases
     for k in phases:  # the servo PC's phase times, back on the capture clock
         assert m["labels"][k] == pytest.approx(meta["labels"][k] - t0, abs=1e-4)
+
+
+def test_every_capture_refusal_names_the_rule_it_breaks():
+    """Each CaptureError in the readers is built as (file, what was found, rule), so the line a user
+    reads ends with "(rule: ...)"; a call with the rule folded into its text, or without one, fails."""
+    import ast
+
+    import embodied_snap.capture as capture
+
+    calls, bad = 0, []
+    for f in sorted(Path(capture.__file__).parent.glob("*.py")):
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "CaptureError":
+                calls += 1
+                text = " ".join(ast.unparse(a) for a in node.args[:2])
+                if len(node.args) != 3 or node.keywords or "rule:" in text:
+                    bad.append(f"{f.name}:{node.lineno}")
+    assert calls > 50 and not bad, bad

@@ -51,8 +51,9 @@ def refused(tmp_path, edit):
         load_lab(path)
     msg = str(e.value)
     assert "\n" not in msg
-    assert msg.startswith(f"{path}: ")
-    return msg[len(f"{path}: "):]
+    # one line: the file, what was found, the rule it breaks; the tests compare what was found
+    assert e.value.rule and msg == f"{path}: {e.value.what} (rule: {e.value.rule})"
+    return e.value.what
 
 
 def test_a_valid_lab_file_loads(tmp_path):
@@ -136,7 +137,7 @@ def test_a_duplicate_servo_id(tmp_path):
 def test_a_reflection_is_not_a_rotation(tmp_path):
     # orthonormal, determinant -1: a capture frame mirrored in Z
     msg = refused(tmp_path, lambda d: d["capture"].update(axes=[[1, 0, 0], [0, 1, 0], [0, 0, -1]]))
-    assert msg == "capture.axes: determinant -1, a reflection, not a rotation (a left-handed frame?)"
+    assert msg == "capture.axes: determinant -1, a reflection (a left-handed frame?)"
 
 
 def test_a_shear_is_not_a_rotation(tmp_path):
@@ -162,7 +163,7 @@ def test_three_collinear_markers(tmp_path):
 
 def test_a_number_that_is_not_finite(tmp_path):
     msg = refused(tmp_path, lambda d: d["arm"].update(arm_length_m=NAN))
-    assert msg == "arm.arm_length_m: nan is not a finite number"
+    assert msg == "arm.arm_length_m: nan"
 
 
 def test_not_yaml(tmp_path):
@@ -232,9 +233,9 @@ def test_body_pose_from_a_rigid_body(tmp_path):
 def test_body_pose_names_what_the_take_lacks(tmp_path):
     lab = load_lab(write(tmp_path))
     take = SimpleNamespace(path=Path("take.csv"), rigid_bodies={}, markers={"m1": markers([[0.0, 0, 0]])})
-    with pytest.raises(CaptureError, match=r"^take\.csv: no rigid body 'S1' \(the lab file's s1\)$"):
+    with pytest.raises(CaptureError, match=r"^take\.csv: no rigid body 'S1' \(the lab file's s1\) \(rule: [^()]+\)$"):
         lab.body_pose(take, "s1")
-    with pytest.raises(CaptureError, match=r"^take\.csv: no marker 'm2' \(the lab file's tip\)$"):
+    with pytest.raises(CaptureError, match=r"^take\.csv: no marker 'm2' \(the lab file's tip\) \(rule: [^()]+\)$"):
         lab.body_pose(take, "tip")
-    with pytest.raises(CaptureError, match=r"lab\.yaml: bodies: no 'target' \(it names base, s1, s2, tip\)$"):
+    with pytest.raises(CaptureError, match=r"lab\.yaml: bodies: no 'target' \(it names base, s1, s2, tip\) \(rule: "):
         lab.body_pose(take, "target")

@@ -34,20 +34,20 @@ def read_c3d(path: str | Path) -> MarkerTake:
     try:
         c = ezc3d.c3d(str(path))
     except RuntimeError as e:
-        raise CaptureError(path, f"not readable as C3D ({str(e).splitlines()[0]})") from None
+        raise CaptureError(path, f"not readable as C3D ({str(e).splitlines()[0]})", "a C3D file ezc3d reads") from None
     point = c["parameters"]["POINT"]
     labels = _labels(point)
     if not labels:
-        raise CaptureError(path, "no point labels (POINT:LABELS is empty)")
+        raise CaptureError(path, "no point labels (POINT:LABELS is empty)", "markers are named by POINT:LABELS")
     if len(set(labels)) < len(labels):
         dup = next(lb for lb in labels if labels.count(lb) > 1)
-        raise CaptureError(path, f"point label {dup!r} appears twice")
+        raise CaptureError(path, f"point label {dup!r} appears twice", "each marker named once")
     units = _value(point, "UNITS", "").strip()
     if units not in TO_METRES:
-        raise CaptureError(path, f"POINT:UNITS {units!r} is not mm, cm or m")
+        raise CaptureError(path, f"POINT:UNITS {units!r}", "length units mm, cm or m")
     rate = float(_value(point, "RATE", 0.0))
     if not rate > 0:
-        raise CaptureError(path, "no positive POINT:RATE")
+        raise CaptureError(path, "no positive POINT:RATE", "a capture rate in the file")
     xyz = c["data"]["points"][:3] * TO_METRES[units]  # (3, points, frames)
     residual = c["data"]["meta_points"]["residuals"][0]
     markers = {}

@@ -11,7 +11,7 @@ the clocks' alone (plus the servo's read latency); a commanded signal (goal tick
 by the rig's response time, and an offset fitted against it carries that lag. Fit against what the
 servo measured when the log has it.
 
-Refused (CaptureError, "<source>: <rule>"): too little overlap between the two signals within the
+Refused (CaptureError, "<source>: <what> (rule: <rule>)"): too little overlap between the two signals within the
 searched shifts, a flat correlation (peak below `min_peak_correlation`: no shared motion, or a signal
 that does not vary), two peaks (a second peak, outside the first's lobe, within
 `max_second_peak_ratio` of the first: a periodic motion, whose shift is known only modulo its
@@ -127,7 +127,8 @@ def estimate_offset(
     if not enough.any():
         raise CaptureError(
             source, f"too little overlap: under {min_overlap_s:g} s of {motion_name} and {command_name} "
-            f"share the mocap clock at any shift within {guess_s:g} +- {max_shift_s:g} s"
+            f"share the mocap clock at any shift within {guess_s:g} +- {max_shift_s:g} s",
+            f"at least {min_overlap_s:g} s of shared motion",
         )
     r = np.where(enough, r, np.nan)
     i = int(np.argmax(np.where(np.isfinite(r), r, -np.inf)))
@@ -135,19 +136,22 @@ def estimate_offset(
     if not peak >= min_peak_correlation:
         raise CaptureError(
             source, f"flat correlation: {motion_name} and {command_name} correlate at most {peak:.2f} "
-            f"(minimum {min_peak_correlation:g}), no shared motion to align on"
+            f"(minimum {min_peak_correlation:g}), no shared motion to align on",
+            "a clock shift is found from one clear correlation peak",
         )
     lo, hi = _lobe(r, i, lobe_fraction * peak)
     ratio = max(_second_peak(r, lo, hi), 0.0) / peak
     if ratio >= max_second_peak_ratio:
         raise CaptureError(
             source, f"two peaks: the correlation of {motion_name} and {command_name} has a second peak "
-            f"{ratio:.2f} of the first (limit {max_second_peak_ratio:g}), the shift is ambiguous"
+            f"{ratio:.2f} of the first (limit {max_second_peak_ratio:g}), the shift is ambiguous",
+            "a clock shift is found from one clear correlation peak",
         )
     if i == 0 or i == len(r) - 1 or not np.isfinite(r[i - 1] + r[i + 1]):
         raise CaptureError(
             source, f"the correlation of {motion_name} and {command_name} peaks at the edge of the "
-            f"searched shifts ({shift[i]:.3f} s): the best shift may lie outside {guess_s:.3f} +- {max_shift_s:g} s"
+            f"searched shifts ({shift[i]:.3f} s): the best shift may lie outside {guess_s:.3f} +- {max_shift_s:g} s",
+            "a clock shift is found from one clear correlation peak",
         )
 
     a, b, c = r[i - 1], r[i], r[i + 1]
@@ -198,15 +202,23 @@ def check_drift(drift: float, limit: float, source="clock") -> None:
     """Refuse a drift (seconds per second) whose size exceeds limit: one offset would misplace the
     servo samples at the ends of the take by more than the importer accepts."""
     if not abs(drift) <= limit:
-        raise CaptureError(source, f"clock drift {drift * 1e6:.1f} ppm is past the limit of {limit * 1e6:g} ppm")
+        raise CaptureError(source, f"clock drift {drift * 1e6:.1f} ppm", f"clock drift <= {limit * 1e6:g} ppm")
 
 
 def _step(source, t, x):
     t, x = np.asarray(t, float), np.asarray(x, float)
     if t.shape != x.shape or t.ndim != 1 or len(t) < 2:
-        raise CaptureError(source, "times and values must be 1-D arrays of one length, at least two samples")
+        raise CaptureError(
+            source,
+            "times and values are not 1-D arrays of one length",
+            "at least two samples of a signal",
+        )
     if not (np.diff(t) > 0).all():
-        raise CaptureError(source, "timestamps must increase")  # np.interp needs them increasing
+        raise CaptureError(
+            source,
+            "timestamps do not increase",
+            "timestamps increase",
+        )  # np.interp needs them increasing
     return float(np.median(np.diff(t)))
 
 

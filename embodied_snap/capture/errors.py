@@ -4,11 +4,16 @@ from __future__ import annotations
 
 
 class CaptureError(ValueError):
-    """An export this package refuses to read: one line, naming the file and the rule broken."""
+    """An export this package refuses to read: one line, `<file>: <what was found> (rule: <rule>)`."""
 
-    def __init__(self, path, rule: str):
-        self.path, self.rule = path, " ".join(str(rule).split())
-        super().__init__(f"{path}: {self.rule}")
+    def __init__(self, path, what: str, rule: str):
+        self.path, self.what, self.rule = path, " ".join(str(what).split()), " ".join(str(rule).split())
+        super().__init__(f"{path}: {self.line}")
+
+    @property
+    def line(self) -> str:
+        """What was found and the rule it breaks, without the file."""
+        return f"{self.what} (rule: {self.rule})"
 
     def __reduce__(self):  # picklable across worker processes
-        return (type(self), (self.path, self.rule))
+        return (type(self), (self.path, self.what, self.rule))

@@ -93,13 +93,17 @@ def load_session(path) -> list[TakeSpec]:
                 meta[k2] = t[k2]
         missing = [k2 for k2 in ("group_id", "evidence_set", "category", "recorded_at") if k2 not in meta]
         if missing:
-            raise CaptureError(path, f"takes.{k}: no {missing[0]} (give it, or a servo folder whose meta.json has it)")
+            raise CaptureError(
+                path,
+                f"takes.{k}: no {missing[0]}",
+                "a take has group_id, evidence_set, category, recorded_at (given, or in its servo folder's meta.json)",
+            )
         takes.append(TakeSpec(mocap=_capture_of(path, doc, t, meta["group_id"], k), servo=servo, meta=meta,
                               events=events, labels=labels))
     ids = [t.meta["group_id"] for t in takes]
     dup = next((g for g in ids if ids.count(g) > 1), None)
     if dup:
-        raise CaptureError(path, f"group {dup} is given to two takes")
+        raise CaptureError(path, f"group {dup} is given to two takes", "one take per group")
     if "labels" in doc:
         sheet = read_labels(base / doc["labels"], set(ids))
         for t in takes:
@@ -115,13 +119,17 @@ def _capture_of(path: Path, doc: dict, t: dict, gid: str, k: int) -> Path:
     if "mocap" in t:
         return path.parent / t["mocap"]
     if "captures" not in doc:
-        raise CaptureError(path, f"takes.{k}: no mocap (give it, or a captures folder holding {gid}.csv or {gid}.c3d)")
+        raise CaptureError(
+            path,
+            f"takes.{k}: no mocap",
+            "a take has its capture export (mocap:, or a captures folder holding {gid}.csv or {gid}.c3d)",
+        )
     folder = path.parent / doc["captures"]
     found = [folder / f"{gid}{s}" for s in CAPTURE_SUFFIXES if (folder / f"{gid}{s}").is_file()]
     if len(found) != 1:
         what = "no" if not found else "two"
-        raise CaptureError(path, f"take {gid}: {what} capture export named {gid}.csv or {gid}.c3d in {folder} "
-                                 "(rule: a take is named by its group id)")
+        raise CaptureError(path, f"take {gid}: {what} capture export named {gid}.csv or {gid}.c3d in {folder}",
+                           "a take is named by its group id")
     return found[0]
 
 
@@ -131,10 +139,14 @@ def read_labels(path, group_ids: set[str]) -> dict[str, dict]:
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
-        raise CaptureError(path, f"not readable as a CSV ({' '.join(str(e).split())})") from None
+        raise CaptureError(
+            path,
+            f"not readable as a CSV ({' '.join(str(e).split())})",
+            "an operator's sheet is a CSV",
+        ) from None
     if "group_id" not in df.columns:
         raise CaptureError(
-            path, "no group_id column (rule: the operator's sheet has group_id, then one column per label)"
+            path, "no group_id column", "the operator's sheet has group_id, then one column per label"
         )
     out = {}
     for _, row in df.iterrows():
@@ -181,7 +193,7 @@ def read_take(path: Path):
         from .c3d import read_c3d
 
         return read_c3d(path)
-    raise CaptureError(path, f"suffix {path.suffix!r}: a Motive CSV (.csv) or a C3D (.c3d)")
+    raise CaptureError(path, f"suffix {path.suffix!r}", "a Motive CSV (.csv) or a C3D (.c3d)")
 
 
 def mocap_table(take, lab: Lab) -> pd.DataFrame:
@@ -189,9 +201,9 @@ def mocap_table(take, lab: Lab) -> pd.DataFrame:
     lab frame, quaternions with w >= 0."""
     lo, hi = RF.MOCAP_HZ_RANGE
     if not lo <= take.rate_hz <= hi:
-        raise CaptureError(take.path, f"captured at {take.rate_hz:g} Hz (rule: capture rate {lo:g}-{hi:g} Hz)")
+        raise CaptureError(take.path, f"captured at {take.rate_hz:g} Hz", f"capture rate {lo:g}-{hi:g} Hz")
     if len(take.t) < 2:
-        raise CaptureError(take.path, f"{len(take.t)} frame(s) (rule: a take has frames)")
+        raise CaptureError(take.path, f"{len(take.t)} frame(s)", "a take has frames")
     cols = {"t": np.asarray(take.t, float) - float(take.t[0])}
     for body in RF.BODIES:
         if body not in lab.bodies:  # only target may be absent (the lab file's schema)
@@ -232,12 +244,20 @@ def servo_table(path: Path, lab: Lab) -> pd.DataFrame:
         try:
             df = read_parquet(p)
         except (OSError, ValueError) as e:
-            raise CaptureError(p, f"not readable as parquet ({' '.join(str(e).split())})") from None
+            raise CaptureError(
+                p,
+                f"not readable as parquet ({' '.join(str(e).split())})",
+                "a parquet servo log",
+            ) from None
         return df
     try:
         raw = pd.read_csv(path)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
-        raise CaptureError(path, f"not readable as a CSV ({' '.join(str(e).split())})") from None
+        raise CaptureError(
+            path,
+            f"not readable as a CSV ({' '.join(str(e).split())})",
+            "a servo log is parquet or CSV",
+        ) from None
     out = {}
     names = {"t": "t"}
     for k, sid in enumerate(lab.servos, 1):
@@ -249,18 +269,23 @@ def servo_table(path: Path, lab: Lab) -> pd.DataFrame:
     if missing:
         raise CaptureError(
             path,
-            f"no {missing[0]!r} column (rule: t, goal_<id>, present_<id>, current_<id> for the lab file's servo ids)",
+            f"no {missing[0]!r} column",
+            "t, goal_<id>, present_<id>, current_<id> for the lab file's servo ids",
         )
     for col, src in names.items():
         v = pd.to_numeric(raw[src], errors="coerce")
         if v.isna().any():
-            raise CaptureError(path, f"a blank or non-numeric cell in {src!r} (row {int(v.isna().idxmax()) + 2})")
+            raise CaptureError(
+                path,
+                f"a blank or non-numeric cell in {src!r} (row {int(v.isna().idxmax()) + 2})",
+                "every cell a number",
+            )
         out[col] = v.to_numpy()
     df = pd.DataFrame(out)
     for c in df.columns:
         if c.startswith(("goal_", "present_")):
             if not (df[c] == df[c].round()).all():  # noqa: SIM102
-                raise CaptureError(path, f"{c!r} holds a fraction (rule: ticks are integers)")
+                raise CaptureError(path, f"{c!r} holds a fraction", "ticks are integers")
             df[c] = df[c].round().astype("int64")
     return df[RF.servo_columns() + (["sync"] if column else [])]
 
@@ -361,7 +386,7 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
     mocap = mocap_table(take, lab)
     servo_raw = servo_table(spec.servo, lab)
     if len(servo_raw) < 2 or not np.all(np.diff(servo_raw["t"].to_numpy(float)) > 0):
-        raise CaptureError(spec.servo, "t is not strictly increasing (rule: t strictly increasing)")
+        raise CaptureError(spec.servo, "t is not strictly increasing", "t strictly increasing")
     servo, clock, to_capture = align(mocap, servo_raw, lab, spec.servo, max_gap_s, 1 / take.rate_hz)
     # Both logs over the time both cover, as the gate wants the servo log around the mocap (to
     # within half its tolerance, so a frame at the edge never decides the rule)
@@ -372,7 +397,8 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
         raise CaptureError(
             spec.servo,
             f"on the capture clock it spans {t_s[0]:.3f}-{t_s[-1]:.3f} s and the take "
-            f"{mocap['t'].iloc[0]:.3f}-{mocap['t'].iloc[-1]:.3f} s (rule: the servo log overlaps the take)",
+            f"{mocap['t'].iloc[0]:.3f}-{mocap['t'].iloc[-1]:.3f} s",
+            "the servo log overlaps the take",
         )
     mocap = mocap[keep].reset_index(drop=True)
     m0, m1 = mocap["t"].iloc[0], mocap["t"].iloc[-1]
@@ -464,7 +490,7 @@ def import_session(session_path, lab: Lab, raw_dir, config: dict, progress=None)
             try:
                 meta, mocap, servo = build_group(s, lab, config)
             except CaptureError as e:
-                raise ImportRefused(f"{e.path}: take {gid}: {e.rule}") from None
+                raise ImportRefused(f"{e.path}: take {gid}: {e.line}") from None
             (tmp / "groups" / gid).mkdir(parents=True)
             RF.write_group(tmp, meta, mocap, servo)
             rows.append({**{k: meta[k] for k in RF.INDEX_COLUMNS[:5]}, "n_mocap": len(mocap), "n_servo": len(servo)})

@@ -54,11 +54,19 @@ class Lab:
         Take's rigid body or from the markers of a Motive Take or a C3D MarkerTake."""
         spec = self.bodies.get(name)
         if spec is None:
-            raise CaptureError(self.path, f"bodies: no {name!r} (it names {', '.join(self.bodies)})")
+            raise CaptureError(
+                self.path,
+                f"bodies: no {name!r} (it names {', '.join(self.bodies)})",
+                "the lab file names base, s1, s2, tip and target",
+            )
         if "rigid_body" in spec:
             table = getattr(take, "rigid_bodies", {}).get(spec["rigid_body"])
             if table is None:
-                raise CaptureError(take.path, f"no rigid body {spec['rigid_body']!r} (the lab file's {name})")
+                raise CaptureError(
+                    take.path,
+                    f"no rigid body {spec['rigid_body']!r} (the lab file's {name})",
+                    "every body the lab file names is in the take",
+                )
             q_axes = Rotation.from_matrix(self.rotation).as_quat(scalar_first=True)
             p = self.to_lab_frame(table[["x", "y", "z"]].to_numpy(float))
             # body -> lab is (capture -> lab) after (body -> capture); NaN (occluded) stays NaN
@@ -67,7 +75,11 @@ class Lab:
         # measured markers only: Motive's body_markers are its solver's idealised ones, not data
         missing = [lb for lb in spec["markers"] if lb not in take.markers]
         if missing:
-            raise CaptureError(take.path, f"no marker {missing[0]!r} (the lab file's {name})")
+            raise CaptureError(
+                take.path,
+                f"no marker {missing[0]!r} (the lab file's {name})",
+                "every body the lab file names is in the take",
+            )
         tables = [take.markers[lb] for lb in spec["markers"]]
         observed = np.stack([np.where(t["valid"].to_numpy()[:, None], t[["x", "y", "z"]], np.nan) for t in tables], 1)
         return fit_pose(list(spec["markers"].values()), self.to_lab_frame(observed))
@@ -80,12 +92,12 @@ def read_yaml(path: Path, schema) -> dict:
     try:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     except OSError as e:
-        raise CaptureError(path, f"not readable ({e.strerror})") from None
+        raise CaptureError(path, f"not readable ({e.strerror})", "a readable file") from None
     except yaml.YAMLError as e:
-        raise CaptureError(path, f"not readable as YAML ({' '.join(str(e).split())})") from None
+        raise CaptureError(path, f"not readable as YAML ({' '.join(str(e).split())})", "a YAML file") from None
     err = violation(doc, schema)
     if err:
-        raise CaptureError(path, err)
+        raise CaptureError(path, err, f"the schema {Path(schema).name}")
     return doc
 
 
@@ -97,21 +109,37 @@ def load_lab(path: str | Path) -> Lab:
     for col, sid in enumerate(servos, 1):
         if sid in servos[: col - 1]:
             first = servos.index(sid) + 1
-            raise CaptureError(path, f"servos: id {sid} is given twice (servo columns {first} and {col})")
+            raise CaptureError(
+                path,
+                f"servos: id {sid} is given twice (servo columns {first} and {col})",
+                "each servo id once",
+            )
     axes = doc["capture"]["axes"]
     rotation = AXES[axes] if isinstance(axes, str) else np.array(axes, float)
     if not np.abs(rotation @ rotation.T - np.eye(3)).max() <= ROTATION_TOL:
-        raise CaptureError(path, f"capture.axes: the rows are not orthonormal (within {ROTATION_TOL:g})")
+        raise CaptureError(
+            path,
+            f"capture.axes: the rows are not orthonormal (within {ROTATION_TOL:g})",
+            "capture.axes is a rotation",
+        )
     if not abs(np.linalg.det(rotation) - 1) <= ROTATION_TOL:
-        raise CaptureError(path, "capture.axes: determinant -1, a reflection, not a rotation (a left-handed frame?)")
+        raise CaptureError(
+            path,
+            "capture.axes: determinant -1, a reflection (a left-handed frame?)",
+            "capture.axes is a rotation",
+        )
     for name, spec in doc["bodies"].items():
         for labels in combinations(spec.get("markers", {}), 3):
             a, b, c = (np.array(spec["markers"][lb], float) for lb in labels)
             longest = max(np.linalg.norm(b - a), np.linalg.norm(c - b), np.linalg.norm(a - c))
             height = np.linalg.norm(np.cross(b - a, c - a)) / longest if longest > 0 else 0.0
             if height < MIN_HEIGHT_M:
-                raise CaptureError(path, f"bodies.{name}.markers: {', '.join(labels)} lie on one line (within 1 mm): "
-                                   "a frame that sees only them has no rotation about it")
+                raise CaptureError(
+                    path,
+                    f"bodies.{name}.markers: {', '.join(labels)} lie on one line (within 1 mm): "
+                    "a frame that sees only them has no rotation about it",
+                    "a body's markers span a plane",
+                )
     return Lab(path=path, rotation=rotation, bodies=doc["bodies"],
                servos=servos, arm=doc["arm"], clock={"max_offset_s": MAX_OFFSET_S, **doc["clock"]})
 
@@ -125,4 +153,4 @@ def _not_finite(path, value, where):
         for i, v in enumerate(value):
             _not_finite(path, v, f"{where}.{i}")
     elif isinstance(value, float) and not math.isfinite(value):
-        raise CaptureError(path, f"{where}: {value} is not a finite number")
+        raise CaptureError(path, f"{where}: {value}", "numbers are finite")

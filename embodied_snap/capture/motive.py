@@ -83,7 +83,11 @@ def read_motive_csv(path: str | Path) -> Take:
     try:
         df = pd.read_csv(io.StringIO(text), skiprows=first, header=list(range(axis - first + 1)))
     except (pd.errors.ParserError, ValueError) as e:
-        raise CaptureError(path, f"not readable as a Motive table ({str(e).splitlines()[0]})") from None
+        raise CaptureError(
+            path,
+            f"not readable as a Motive table ({str(e).splitlines()[0]})",
+            "a Motive CSV export",
+        ) from None
     cols = [dict(zip(levels, (_blank_unnamed(v) for v in c))) for c in df.columns]
     frame, t = _frames(path, df, cols, meta["rate_hz"])
     scale = TO_METRES[meta["units"]]
@@ -102,23 +106,27 @@ def read_motive_csv(path: str | Path) -> Take:
 def _metadata(path, line):
     row = next(csv.reader([line]), [])
     if not row or row[0] != "Format Version":
-        raise CaptureError(path, "not a Motive export: its first cell is not 'Format Version'")
+        raise CaptureError(
+            path,
+            "its first cell is not 'Format Version'",
+            "a Motive export opens with its metadata row",
+        )
     meta = {k.strip(): v.strip() for k, v in zip(row[0::2], row[1::2])}
     if meta["Format Version"] not in VERSIONS:
-        raise CaptureError(path, f"format version {meta['Format Version']!r} is not one of 1.21-1.25")
+        raise CaptureError(path, f"format version {meta['Format Version']!r}", "Motive format version 1.21-1.25")
     if meta.get("Rotation Type") != "Quaternion":
-        raise CaptureError(path, f"rotation type is {meta.get('Rotation Type')!r}, not Quaternion")
+        raise CaptureError(path, f"rotation type {meta.get('Rotation Type')!r}", "rotation type Quaternion")
     units = meta.get("Length Units")
     if units is None:
-        raise CaptureError(path, "no Length Units in the metadata row")
+        raise CaptureError(path, "no Length Units in the metadata row", "length units given")
     if units not in TO_METRES:
-        raise CaptureError(path, f"length units {units!r} are not Millimeters, Centimeters or Meters")
+        raise CaptureError(path, f"length units {units!r}", "length units Millimeters, Centimeters or Meters")
     try:
         rate = float(meta["Export Frame Rate"])
     except (KeyError, ValueError):
         rate = float("nan")
     if not rate > 0:
-        raise CaptureError(path, "no positive Export Frame Rate in the metadata row")
+        raise CaptureError(path, "no positive Export Frame Rate in the metadata row", "a capture rate in the file")
     total = meta.get("Total Exported Frames", "")
     return dict(
         name=meta.get("Take Name", ""),
@@ -137,7 +145,11 @@ def _header(path, lines):
     rows = list(csv.reader(lines[:HEADER_SEARCH]))
     axis = next((i for i, r in enumerate(rows) if r and r[0] == "Frame"), None)
     if axis is None:
-        raise CaptureError(path, "no axis row starting with 'Frame' in the header")
+        raise CaptureError(
+            path,
+            "no axis row starting with 'Frame' in the header",
+            "a Motive header ends with its Frame row",
+        )
     tags = {}
     for i, r in enumerate(rows[1:axis], 1):
         tag = next((c for c in r[:2] if c), "")
@@ -145,17 +157,25 @@ def _header(path, lines):
             tags[i] = tag
     missing = [t for t in ("Type", "Name", "ID") if t not in tags.values()]
     if missing:
-        raise CaptureError(path, f"no {', '.join(missing)} row in the header")
+        raise CaptureError(
+            path,
+            f"no {', '.join(missing)} row in the header",
+            "a Motive header has Type, Name and ID rows",
+        )
     first = min(tags)
     # the tagged rows, then the component row, then the axis row, with nothing between
     if sorted(tags) != list(range(first, axis - 1)):
-        raise CaptureError(path, "the Type, Name, ID rows are not followed by a component row and the Frame row")
+        raise CaptureError(
+            path,
+            "the Type, Name, ID rows are not followed by a component row and the Frame row",
+            "a Motive header's rows in order",
+        )
     return first, axis, [tags[i] for i in sorted(tags)] + ["component", "axis"]
 
 
 def _check_cells(path, text, lines, axis):
     if not text.endswith("\n"):
-        raise CaptureError(path, "truncated: the last row does not end with a line break")
+        raise CaptureError(path, "truncated: the last row does not end with a line break", "a complete file")
     width = lines[axis].count(",") + 1
     data = lines[axis + 1 :]
     while data and not data[-1]:  # the empty string after the final line break, and blank lines at the end
@@ -164,7 +184,11 @@ def _check_cells(path, text, lines, axis):
     short = next((i for i, ln in enumerate(data) if ln.count(",") + 1 < width), None)
     if short is not None:
         n = data[short].count(",") + 1
-        raise CaptureError(path, f"truncated: line {axis + 2 + short} has {n} of the header's {width} cells")
+        raise CaptureError(
+            path,
+            f"truncated: line {axis + 2 + short} has {n} of the header's {width} cells",
+            "a complete file",
+        )
 
 
 def _blank_unnamed(v):
@@ -176,27 +200,39 @@ def _frames(path, df, cols, rate):
     def column(name):
         i = next((i for i, c in enumerate(cols) if c["axis"] == name), None)
         if i is None:
-            raise CaptureError(path, f"no {name!r} column")
+            raise CaptureError(path, f"no {name!r} column", "a Motive table has Frame and Time (Seconds) columns")
         values = pd.to_numeric(df.iloc[:, i], errors="coerce").to_numpy(float)
         if np.isnan(values).any():
-            raise CaptureError(path, f"a blank or non-numeric cell in the {name!r} column")
+            raise CaptureError(
+                path,
+                f"a blank or non-numeric cell in the {name!r} column",
+                "every frame numbered and timed",
+            )
         return values
 
     frame, t = column("Frame"), column("Time (Seconds)")
     if (frame != np.round(frame)).any():
-        raise CaptureError(path, "a Frame number that is not an integer")
+        raise CaptureError(path, "a Frame number that is not an integer", "every frame numbered and timed")
     frame = frame.astype(int)
     step = np.diff(frame)
     if (step == 0).any():
-        raise CaptureError(path, f"frame {frame[1:][step == 0][0]} is duplicated")
+        raise CaptureError(path, f"frame {frame[1:][step == 0][0]} is duplicated", "frames in order, each once")
     if (step < 0).any():
         i = int(np.flatnonzero(step < 0)[0])
-        raise CaptureError(path, f"frames out of order: frame {frame[i + 1]} after frame {frame[i]}")
+        raise CaptureError(
+            path,
+            f"frames out of order: frame {frame[i + 1]} after frame {frame[i]}",
+            "frames in order, each once",
+        )
     # Motive writes Time as frame / rate, to the microsecond, or (NMotive) to the millisecond:
     # the median step per frame is within 1 ms of 1 / rate in every export, whatever the rounding
     if len(t) > 1 and abs(np.median(np.diff(t) / step) - 1 / rate) > 1e-3:
         per = np.median(np.diff(t) / step)
-        raise CaptureError(path, f"the Time column steps {per:.6f} s per frame, not 1/{rate:g} s (Export Frame Rate)")
+        raise CaptureError(
+            path,
+            f"the Time column steps {per:.6f} s per frame, not 1/{rate:g} s",
+            "Time agrees with the Export Frame Rate",
+        )
     return frame, t
 
 
@@ -207,23 +243,31 @@ def _tables(path, df, cols, scale):
         if c["axis"] in ("Frame", "Time (Seconds)", "TimeCode"):
             continue
         if c["Type"] not in KINDS:
-            raise CaptureError(path, f"column type {c['Type']!r} is not one this reader knows ({', '.join(KINDS)})")
+            raise CaptureError(path, f"column type {c['Type']!r}", f"column types {', '.join(KINDS)}")
         field = FIELDS.get((c["component"], c["axis"]))
         if field is None:
             continue
         fields = groups.setdefault((c["Type"], c["Name"]), {})
         if field in fields:
-            raise CaptureError(path, f"{c['Type']} {c['Name']!r} appears twice (a second {c['component']} {c['axis']})")
+            raise CaptureError(
+                path,
+                f"{c['Type']} {c['Name']!r} appears twice (a second {c['component']} {c['axis']})",
+                "each body or marker named once",
+            )
         fields[field] = i
     tables: dict[str, dict[str, pd.DataFrame]] = {}
     for (kind, name), fields in groups.items():
         field, columns = KINDS[kind]
         missing = [c for c in columns if c not in fields]
         if missing:
-            raise CaptureError(path, f"{kind} {name!r} has no {', '.join(missing)} column")
+            raise CaptureError(
+                path,
+                f"{kind} {name!r} has no {', '.join(missing)} column",
+                "every component of a body or marker",
+            )
         table = tables.setdefault(field, {})
         if name in table:  # a Marker and an Unlabeled Marker of one name
-            raise CaptureError(path, f"marker {name!r} appears twice")
+            raise CaptureError(path, f"marker {name!r} appears twice", "each body or marker named once")
         table[name] = _table(path, df, fields, columns, scale)
     return tables
 
@@ -232,7 +276,11 @@ def _table(path, df, fields, columns, scale):
     try:
         out = pd.DataFrame({c: df.iloc[:, fields[c]].to_numpy(float) for c in columns})
     except ValueError:
-        raise CaptureError(path, f"a non-numeric cell among columns {sorted(fields.values())}") from None
+        raise CaptureError(
+            path,
+            f"a non-numeric cell among columns {sorted(fields.values())}",
+            "cells are numbers or blank",
+        ) from None
     out[POINT_COLUMNS] *= scale  # positions only: quaternions have no unit
     out["valid"] = out[columns].notna().all(axis=1)
     return out
