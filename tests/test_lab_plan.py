@@ -39,6 +39,19 @@ def test_the_plan_holds_the_budgets_groups_one_session_and_set_at_a_time(smoke_p
     assert keys == sorted(keys)  # sessions in turn, one evidence set at a time within each
 
 
+def test_the_summary_times_each_set_from_its_programs(smoke_plan):
+    # docs/lab.md's table of the sets' minutes is this summary at the paper budget
+    doc, _ = smoke_plan
+    lines = dict(ln.split(": ", 1) for ln in LP.summary(doc).splitlines())
+    sets = {e["evidence_set"] for e in doc["groups"]}
+    assert len(sets) == 6 and sets <= set(lines)
+    for es in sets:
+        g = [e for e in doc["groups"] if e["evidence_set"] == es]
+        n, mins = lines[es].split(", ")[:2]
+        assert n == f"{len(g)} groups" and mins.startswith(f"{sum(e['duration_s'] for e in g) / 60:.1f} min")
+    assert "pushes the mount" in lines["held_base"] and lines["servo_calibration"].endswith("keeps clear")
+
+
 def test_the_operator_is_asked_only_what_nothing_measures(smoke_plan):
     doc, _ = smoke_plan
     for e in doc["groups"]:

@@ -170,8 +170,17 @@ def group_goals(doc: dict, entry: dict) -> tuple[np.ndarray, dict]:
 
 
 def summary(doc: dict) -> str:
-    """A line per session: its sets, groups and minutes of program."""
+    """A line per evidence set (its groups, minutes of program, the operator's part), then a line
+    per session: its sets, groups and minutes of program."""
     out = []
+    for es in EVIDENCE_SETS:
+        g = [e for e in doc["groups"] if e["evidence_set"] == es]
+        if g:
+            mins = sum(e["duration_s"] for e in g) / 60
+            n = {k: sum(k in e for e in g) for k in ("target", "cue_s")}
+            does = ", ".join([f"places the block {n['target']}x"] * bool(n["target"])
+                             + [f"pushes the mount {n['cue_s']}x"] * bool(n["cue_s"])) or "keeps clear"
+            out.append(f"{es}: {len(g)} group{'s' * (len(g) != 1)}, {mins:.1f} min of programs; the operator {does}")
     sessions = sorted({e["session"] for e in doc["groups"]})
     for s in sessions:
         g = [e for e in doc["groups"] if e["session"] == s]
