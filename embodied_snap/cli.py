@@ -334,7 +334,7 @@ def cmd_resources(a) -> int:
 
 
 def cmd_lab_plan(a) -> int:
-    """The sessions a lab records for a budget (docs/acquisition.md): the acquisition protocol's
+    """The sessions a lab records for a budget (docs/lab.md): the acquisition protocol's
     groups, programs and operator steps, the targets where the simulated rig's model of the arm
     says the cup strikes."""
     from .lab import plan as LP
@@ -372,7 +372,7 @@ def cmd_lab_plan(a) -> int:
 
 
 def cmd_lab_acquire(a) -> int:
-    """Record the plan's groups on the arm (docs/acquisition.md); every argument and every group's
+    """Record the plan's groups on the arm (docs/lab.md); every argument and every group's
     goals are checked before the port opens."""
     from .lab.acquire import LabArgumentError, LabError, acquire
 

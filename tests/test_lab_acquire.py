@@ -1,5 +1,5 @@
 """`esnap lab acquire` over the simulated rig's virtual Protocol 2.0 bus is the lab in these tests
-(docs/acquisition.md): the plan's first session (one group of every evidence set) recorded with the
+(docs/lab.md): the plan's first session (one group of every evidence set) recorded with the
 operator's steps answered here, the held-base push applied by the rig at the cue, the rig's takes
 exported as Motive CSV named by group id, and `esnap import` completing the groups through the gate.
 Faults on the bus stop the arm with one line, mark exactly that group aborted, and a resumed session

@@ -1,6 +1,6 @@
 """`esnap lab plan` writes the acquisition protocol's groups in the order an operator works, and
 `esnap lab acquire` refuses, in one line and before any port opens, every argument or plan that
-could move the arm differently from the plan (embodied_snap/lab; docs/acquisition.md)."""
+could move the arm differently from the plan (embodied_snap/lab; docs/lab.md)."""
 
 from __future__ import annotations
 

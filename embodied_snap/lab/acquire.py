@@ -186,7 +186,7 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
         else:
             write_session_files(doc, out)
             raise LabError(f"{gid}: the gate refused its servo log {MAX_ATTEMPTS} times in a row ({refused}): the bus "
-                           "cannot keep the sync-read rate (docs/acquisition.md, a busy PC)")
+                           "cannot keep the sync-read rate (docs/lab.md, a busy PC)")
         labels = ask_labels(entry, ask) if entry["labels"] and not yes else {}
         if labels:
             mp = out / "groups" / gid / "meta.json"
