@@ -2,6 +2,7 @@
 raw_data/) written out as a lab's sessions, then imported, on one core.
 
     python bench/import_speed.py RAW_DIR WORK_DIR [--fmt motive|c3d] [--rate 120] [--sync event|none]
+    python bench/import_speed.py RAW_DIR - --floor
 
 Writes WORK_DIR/export (tests/labexport.py: Motive CSV in mm or C3D markers, servo logs 0.137 s
 behind, operator sheets) and imports every session into WORK_DIR/raw (in this process, pyarrow on
@@ -42,10 +43,14 @@ def main(argv=None):
     ap.add_argument("--rate", type=float, default=120)
     ap.add_argument("--sync", choices=["event", "none"], default="event")
     ap.add_argument("--config", action="append", default=[], help="K=V, as esnap's --config")
+    ap.add_argument("--floor", action="store_true",
+                    help="fit the clock on RAW_DIR's own groups, one clock and no offset: the method's floor")
     ap.add_argument("--reuse", action="store_true", help="import WORK_DIR/export as it is (written by an earlier run)")
     a = ap.parse_args(argv)
     pa.set_cpu_count(1)
     pa.set_io_thread_count(1)
+    if a.floor:
+        return floor(Path(a.raw_dir), runconfig.load(None, a.config))
     work = Path(a.work_dir)
     shutil.rmtree(work / "raw", ignore_errors=True)
     t = time.perf_counter()
@@ -96,6 +101,30 @@ def main(argv=None):
           f"({n / t_import:.2f} takes/s, one core); {len(refused)} session(s) refused")
     for line in refused:
         print(f"  refused: {line}")
+
+def floor(raw: Path, cfg: dict) -> None:
+    """The clock fit where the truth is 0: each native group's mocap and servo log share one clock,
+    so every millisecond of the estimate is the method's (the arm's lag behind its servos)."""
+    import pandas as pd
+
+    from embodied_snap.capture.clock import estimate_offset
+    from embodied_snap.capture.errors import CaptureError
+    from embodied_snap.capture.importer import MIN_OVERLAP_S, MIN_PEAK_CORRELATION, clock_signals
+    from embodied_snap.capture.lab import MAX_OFFSET_S
+
+    gap, err, bad = cfg["resample"]["max_gap_s"], [], 0
+    for g in sorted((raw / "groups").iterdir()):
+        m, s = pd.read_parquet(g / "mocap.parquet"), pd.read_parquet(g / "servo.parquet")
+        _, motion, command = clock_signals(m, s, gap)
+        try:
+            err.append(estimate_offset(m.t.to_numpy(), motion, s.t.to_numpy(), command, MAX_OFFSET_S, max_gap_s=gap,
+                                       min_overlap_s=MIN_OVERLAP_S, min_peak_correlation=MIN_PEAK_CORRELATION).offset_s)
+        except CaptureError:
+            bad += 1
+    e = np.array(err) * 1e3
+    print(f"clock fit on {len(e) + bad} native groups (one clock, true offset 0): {bad} refused; estimate (ms) "
+          f"median {np.median(e):+.1f}, |err| p90 {np.percentile(abs(e), 90):.1f}, max {abs(e).max():.1f}")
+
 
 if __name__ == "__main__":
     main()
