@@ -5,7 +5,8 @@ servo PC would have them (tests/labexport.py: Motive CSV at 120 Hz in millimetre
 gaps, servo logs on a clock 0.137 s behind, the operator's sheets) and brought in with `esnap
 import`, one session at a time; then the whole DAG runs with `raw_data.source: rig`. The
 provenance records list every package module each job loaded, and none is under
-embodied_snap/twin/. The servo calibration's claims are compared with the simulated rig's own run.
+embodied_snap/twin/. The servo calibration's claims and the operating bend rates are compared with
+the simulated rig's own run.
 """
 
 from __future__ import annotations
@@ -30,6 +31,13 @@ RIG = ["--config", "budget=smoke", "raw_data={source: rig, dir: lab/recordings}"
 # little (the smoke tree: 0.06-0.43 %, the rate ceilings included); 1 % each.
 CALIBRATION = dict.fromkeys(["tendon_travel_per_tick_um", "servo_time_constant_s", "lever_ratio_s1", "lever_ratio_s2",
                              "lever_ratio_s3", "rate_ceiling_s1", "rate_ceiling_s2", "rate_ceiling_s3"], 0.01)
+# The delay sweep's operating bend rates: peaks, read on the 240 Hz grid at any capture rate
+# (characterize/mocap.py on_grid). Decimating the paper tree's release groups to 120 Hz moves a
+# group's peak rate by a median -2.2 to +0.3 % (90th percentile of |change| 9.5-12.2 %); the smoke
+# tree's medians over its 6 operating groups moved +1.9 to +4.2 %; 6 % each. Read over the take's
+# own samples they came out 19-22 % low.
+TOLERANCE = CALIBRATION | dict.fromkeys(
+    [f"operating_rate_s{k}_dps" for k in (1, 2, 3)] + [f"operating_rate_ratio_s{k}" for k in (1, 2, 3)], 0.06)
 
 
 def test_rig_source_builds_every_figure_without_the_twin(tmp_path, smoke_run):
@@ -52,7 +60,7 @@ def test_rig_source_builds_every_figure_without_the_twin(tmp_path, smoke_run):
     ours = pd.read_csv(tmp_path / "results/characterize/claims.csv").set_index("claim_id").ours.astype(str)
     native = pd.read_csv(smoke_run / "results/characterize/claims.csv").set_index("claim_id").ours.astype(str)
     assert set(ours.index) == set(native.index)
-    for claim, tol in CALIBRATION.items():
+    for claim, tol in TOLERANCE.items():
         assert abs(float(ours[claim]) / float(native[claim]) - 1) <= tol, (claim, ours[claim], native[claim])
     figs = sorted(p.name for p in (tmp_path / "results/figures").iterdir())
     assert {f"fig{k}" for k in (0, 2, 3, 4, 5)} <= {f.split("_")[0] for f in figs}

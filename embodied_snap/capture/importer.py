@@ -30,7 +30,7 @@ import numpy as np
 import pandas as pd
 
 from .. import rawformat as RF
-from ..characterize.mocap import section_bends, tip_speed
+from ..characterize.mocap import on_grid, section_bends, tip_speed
 from ..io import read_parquet
 from ..validate import COVER_TOL_S
 from .clock import check_drift, estimate_offset, measure_drift
@@ -226,16 +226,6 @@ def _hemisphere(q):
     return q * np.where(q[:, :1] < 0, -1.0, 1.0)
 
 
-def _continuous(q, valid):
-    """q with each valid sample's sign flipped to agree with the valid sample before it."""
-    q = np.array(q, float)
-    idx = np.flatnonzero(valid)
-    if len(idx) > 1:
-        flips = np.einsum("ij,ij->i", q[idx[1:]], q[idx[:-1]]) < 0
-        q[idx] *= np.where(np.cumsum(np.concatenate([[0], flips])) % 2, -1.0, 1.0)[:, None]
-    return q
-
-
 def servo_table(path: Path, lab: Lab) -> pd.DataFrame:
     """The servo PC's log in the format's columns (servo column k = bus id lab.servos[k - 1]), on
     its own clock still."""
@@ -303,13 +293,8 @@ def clock_signals(mocap: pd.DataFrame, servo: pd.DataFrame, max_gap_s: float):
         d = np.stack([servo[f"present_{RF.servo_id(s, k)}"].to_numpy(float) for k in (1, 2, 3)], 1)
         travel.append(np.sqrt(2 / 3 * ((d - d[0]) ** 2).sum(1)))
     s = int(np.argmax([np.ptp(x) for x in travel]))
-    # section_bends bridges dropouts by interpolating quaternions: across a flip between q and -q
-    # that is a spike of bend rate, so the signs are made continuous first (the format's w >= 0
-    # flips wherever a body turns through half a turn)
-    mocap = mocap.copy()
-    for b in ("base", "s1", "s2", "tip"):
-        cols = [f"{b}_{c}" for c in ("qw", "qx", "qy", "qz")]
-        mocap[cols] = _continuous(mocap[cols].to_numpy(float), mocap[f"{b}_valid"].to_numpy(bool))
+    # the format's w >= 0 flips a quaternion's sign wherever a body turns through half a turn:
+    # section_bends (mocap.track) makes the signs continuous before it bridges a dropout
     theta, _ = section_bends(mocap, max_gap_s)
     return s + 1, np.gradient(theta[:, s], mocap["t"].to_numpy(float)), np.gradient(travel[s], t_s)
 
@@ -408,7 +393,7 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
     servo = servo.iloc[i0:i1].reset_index(drop=True)
 
     labels = {k: round(float(to_capture(v)), 4) for k, v in spec.events.items()}
-    v = tip_speed(mocap, max_gap_s)
+    v = tip_speed(on_grid(mocap), max_gap_s)
     (measured,) = MEASURED_LABELS
     labels[measured] = bool(np.isfinite(v).any() and np.nanmax(v) >= config["characterize"]["attach_speed_mps"])
     labels.update(spec.labels)

@@ -51,6 +51,7 @@ def servo_residual(sv, rate, tau, servos=(1, 2, 3)) -> tuple[np.ndarray, np.ndar
 
 
 def trial(mc, sv, meta, servo_fit, thr, max_gap_s: float) -> dict:
+    mc = M.on_grid(mc)  # smooth3 spans the same time at any capture rate
     t = mc.t.to_numpy()
     lab = meta["labels"]
     ts, res = servo_residual(sv, servo_fit["rate_tick_s"], servo_fit["tau_s"])

@@ -13,7 +13,9 @@ from . import mocap as M
 def features(mc, meta, end_effector_m: float, max_gap_s: float) -> dict:
     """Peak speed and section rates from the release on; with a target, the cup face's (tracked
     tip pose + end_effector_m along the tip axis, embodied_snap.cup, as in the policy reward)
-    closest approach, lateral offset and tilt there. Mocap dropouts up to max_gap_s are bridged."""
+    closest approach, lateral offset and tilt there. Mocap dropouts up to max_gap_s are bridged;
+    the kinematics are on the 240 Hz grid whatever the take's rate (mocap.on_grid)."""
+    mc = M.on_grid(mc)
     t = mc.t.to_numpy()
     t0 = load.release_start(meta)
     v_peak, t_peak = M.peak(M.tip_speed(mc, max_gap_s), t, t0)

@@ -19,7 +19,7 @@ import pandas as pd
 
 from .. import rawformat as RF
 from ..characterize.load import release_start
-from ..characterize.mocap import peak, section_rates, tip_speed
+from ..characterize.mocap import on_grid, peak, section_rates, tip_speed
 from ..io import read_parquet
 from ..protocol import Protocol
 
@@ -39,7 +39,7 @@ def phenomena(raw_dir: str | Path, groups: "pd.DataFrame", proto: Protocol) -> d
             continue
         p = RF.group_paths(raw_dir, row.group_id)
         meta = RF.read_meta(p["meta"])
-        mc = read_parquet(p["mocap"])
+        mc = on_grid(read_parquet(p["mocap"]))
         t, t0 = mc.t.to_numpy(), release_start(meta) - LEAD_S
         v, _ = peak(tip_speed(mc, proto.sampling.max_gap_s), t, t0)
         rec = dict(
