@@ -18,6 +18,7 @@ from embodied_snap import rawschema as RS
 from embodied_snap.characterize import mocap as CM
 from embodied_snap.rawformat import (
     BODIES,
+    MOCAP_HZ,
     MOCAP_HZ_RANGE,
     MOCAP_RATE_RULE,
     TIP_AXIS_LOCAL,
@@ -389,8 +390,11 @@ def _peaks(mc):
 
 
 def test_a_take_at_the_grid_rate_is_read_as_it_is():
-    mc = _pulse_take(240.0)
+    mc = _pulse_take(CM.GRID_HZ)
     assert CM.on_grid(mc) is mc  # the paper's rate: the kernels see the recorded samples
+    # the simulated rig records at that rate, so its takes (every test's, the default run's) are
+    # read as recorded and the grid leaves its results as they were
+    assert MOCAP_HZ == CM.GRID_HZ
 
 
 @pytest.mark.parametrize("hz", (100.0, 120.0, 360.0, 500.0))
@@ -398,7 +402,7 @@ def test_a_take_at_the_grid_rate_is_read_as_it_is():
 def test_peak_speed_and_bend_rate_agree_with_the_240_hz_take_at_any_rate(hz, phase):
     # Over the take's own samples, smooth3 and the central difference span 2.4x the time at
     # 100 Hz: the peaks come out 14-20 % low. On the 240 Hz grid they agree within 2 %.
-    ref = _peaks(_pulse_take(240.0))
+    ref = _peaks(_pulse_take(CM.GRID_HZ))
     assert ref[1] == pytest.approx(PULSE_TURN * ref[0], rel=1e-3)
     np.testing.assert_allclose(_peaks(_pulse_take(hz, phase)), ref, rtol=0.02)
 
@@ -412,4 +416,4 @@ def test_a_bridged_dropout_across_a_quaternion_sign_flip_is_one_rotation(hz):
     # A line across the peak cuts it (to 50-80 %); a line through zero read 10-30 times the peak.
     assert 0.5 * ref[1] < got[1] <= ref[1] * 1.001
     mc = CM.on_grid(_pulse_take(hz, flip_after=k, lost=lost))
-    assert (~mc.tip_valid).sum() >= len(lost) * 240.0 / hz - 1  # a dropout stays a dropout on the grid
+    assert (~mc.tip_valid).sum() >= len(lost) * CM.GRID_HZ / hz - 1  # a dropout stays a dropout on the grid

@@ -17,10 +17,10 @@ import pandas as pd
 from scipy.interpolate import CubicSpline
 
 from ..quat import qconj, qmul, qrotate
+from ..rawformat import POSE_FIELDS
 
 SECTION_FRAMES = (("base", "s1"), ("s1", "s2"), ("s2", "tip"))
 GRID_HZ = 240.0  # the rate smooth3 and the central differences are defined at (paper III)
-_QUAT = ("qw", "qx", "qy", "qz")
 
 
 def continuous(q: np.ndarray) -> np.ndarray:
@@ -49,15 +49,15 @@ def on_grid(mc: pd.DataFrame, hz: float = GRID_HZ) -> pd.DataFrame:
     bodies = [c[: -len("_valid")] for c in mc.columns if c.endswith("_valid")]
     for b in bodies:
         v = mc[f"{b}_valid"].to_numpy(bool)
-        pose = mc[[f"{b}_{f}" for f in ("x", "y", "z", *_QUAT)]].to_numpy(float, copy=True)
+        pose = mc[[f"{b}_{f}" for f in POSE_FIELDS]].to_numpy(float, copy=True)
         pose[~v] = np.nan
         pose[:, 3:] = continuous(pose[:, 3:])
         if v.sum() >= 2:
             g = CubicSpline(t[v], pose[v], axis=0)(tg)
             g[:, 3:] /= np.linalg.norm(g[:, 3:], axis=1, keepdims=True)
         else:
-            g = np.full((len(tg), 7), np.nan)
-        for j, f in enumerate(("x", "y", "z", *_QUAT)):
+            g = np.full((len(tg), len(POSE_FIELDS)), np.nan)
+        for j, f in enumerate(POSE_FIELDS):
             out[f"{b}_{f}"] = g[:, j]
         out[f"{b}_valid"] = v[k] & (v[k + 1] | (tg - t[k] < 1e-9))
     return pd.DataFrame(out)
