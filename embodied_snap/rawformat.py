@@ -27,6 +27,12 @@ MOCAP_RATE_RULE = f"mocap rate constant, {MOCAP_HZ_RANGE[0]:g}-{MOCAP_HZ_RANGE[1
 # what the format requires. The gate and the pipeline never read it.
 MOCAP_HZ = 240.0
 SERVO_HZ = 100.0
+# When the goal logged in a servo-log row began to act (meta.json `goal_timing`, one of these):
+# "interval" -- somewhere in the interval since the previous row (the goals run at the servo loop's
+# own rate and the log samples them: the simulated rig); "row" -- written in the row's own bus
+# cycle, just before its sync-read (esnap lab and esnap deploy log so, as a live bus does).
+# Recordings without the key are "interval".
+GOAL_TIMING = ("interval", "row")
 TICKS_PER_REV = 4096
 N_SERVOS = 9
 
@@ -96,6 +102,11 @@ def mocap_columns() -> list[str]:
     for b in BODIES:
         cols += [f"{b}_{f}" for f in POSE_FIELDS] + [f"{b}_valid"]
     return cols
+
+
+def goal_timing(meta: dict) -> str:
+    """The servo log's goal timing (GOAL_TIMING); the gate has checked the value."""
+    return meta.get("goal_timing", GOAL_TIMING[0])
 
 
 def servo_columns() -> list[str]:

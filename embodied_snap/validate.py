@@ -22,8 +22,10 @@ import pandas as pd
 from .protocol import params
 from .rawformat import (
     FORMAT_VERSION,
+    GOAL_TIMING,
     GROUP_FILES,
     RecordingError,
+    goal_timing,
     group_paths,
     raw_file,
 )
@@ -104,6 +106,13 @@ def _check_meta(meta: dict, path, gid: str, lim: Limits, t_span) -> None:
             gid,
             f"format_version {v!r}; this pipeline reads {FORMAT_VERSION}",
             f"format version {FORMAT_VERSION}",
+        )
+    if goal_timing(meta) not in GOAL_TIMING:
+        raise RecordingError(
+            path,
+            gid,
+            f"goal_timing {meta['goal_timing']!r}",
+            f"goal_timing one of {', '.join(GOAL_TIMING)}",
         )
     es, cat = meta["evidence_set"], meta["category"]
     for key, table in (("program", lim.program), ("labels", lim.labels)):

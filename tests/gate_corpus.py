@@ -403,6 +403,10 @@ CORPUS = {
         set_meta("att_0008", "format_version", "1"),
         (J, "att_0008", "format version 1"),
     ),
+    "goal_timing unknown": (
+        set_meta("cal_0003", "goal_timing", "later"),
+        (J, "cal_0003", "goal_timing one of interval, row"),
+    ),
     "labels missing": (
         meta("rel_0006", lambda m: m.pop("labels")),
         (J, "rel_0006", "labels complete per evidence set"),

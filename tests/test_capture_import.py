@@ -20,7 +20,8 @@ import pytest
 import yaml
 
 from embodied_snap.cli import main
-from embodied_snap.rawformat import BODIES, read_meta
+from embodied_snap.capture.importer import SESSION_SCHEMA
+from embodied_snap.rawformat import BODIES, GOAL_TIMING, read_meta
 
 from fakerig import write_fake_group, write_fake_raw
 from labexport import (
@@ -335,7 +336,7 @@ def test_a_servo_log_esnap_deploy_wrote_carries_the_take_s_identity(tmp_path, ca
     phases = {k: float(servo_clock(v, t0 + SYNC_S, 0)) for k, v in meta["labels"].items() if k in SERVO_CLOCK_EVENTS}
     side = dict(format_version=1, group_id="dep_0001", evidence_set="deployment", category="placement",
                 session="lab", recorded_at="2026-03-01T10:00:00", source="rig", program=meta["program"],
-                labels=phases, manifest_sha256="ab" * 32)
+                labels=phases, manifest_sha256="ab" * 32, goal_timing="row")
     (folder / "meta.json").write_text(json.dumps(side))
     take = dict(mocap="takes/dyn_0001.csv", servo="deploy/groups/dep_0001")
     doc = dict(session="lab", labels="dep_labels.csv", takes=[take])
@@ -346,10 +347,17 @@ def test_a_servo_log_esnap_deploy_wrote_carries_the_take_s_identity(tmp_path, ca
     assert rc == 0, err
     m = read_meta(raw / "groups" / "dep_0001" / "meta.json")
     assert (m["evidence_set"], m["program"], m["manifest_sha256"]) == ("deployment", meta["program"], "ab" * 32)
+    assert m["goal_timing"] == "row"  # how the client logged its goals travels with the log
     assert m["labels"]["attached"] is True and m["labels"]["retrieved"] is False
     assert phases
     for k in phases:  # the servo PC's phase times, back on the capture clock
         assert m["labels"][k] == pytest.approx(meta["labels"][k] - t0, abs=1e-4)
+
+
+def test_a_session_s_goal_timing_is_the_format_s():
+    """A take's goal_timing (schemas/session.schema.yaml) allows exactly rawformat.GOAL_TIMING."""
+    doc = yaml.safe_load(SESSION_SCHEMA.read_text())
+    assert tuple(doc["$defs"]["take"]["properties"]["goal_timing"]["enum"]) == GOAL_TIMING
 
 
 def test_every_capture_refusal_names_the_rule_it_breaks():

@@ -334,6 +334,55 @@ def test_servo_residual_zero_for_model_servo():
     assert np.max(res) < 20.0  # the step lands between log samples: at most a few ms of rate
 
 
+def _model_log(timing, rng):
+    """A model servo (rate 3000, tau 0.03) logged at jittered ~100 Hz reads, its goal stepping at
+    row times (timing "row": written in the row's cycle, as a live bus logs) or between rows
+    ("interval": sampled from a 1 kHz goal, as the simulated rig logs)."""
+    t = np.cumsum(rng.uniform(0.008, 0.012, 150))
+    goals = np.where((np.arange(len(t)) // 15) % 2 == 1, 400.0, 0.0)  # a step every 15 rows
+    grid = np.arange(0.0, t[-1] + servo.DT, servo.DT)
+    k = np.round(t / servo.DT).astype(int)
+    if timing == "row":
+        tc = t[np.flatnonzero(np.diff(goals)) + 1]
+    else:  # each change half-way through its log interval, on the 1 kHz loop
+        ch = np.flatnonzero(np.diff(goals)) + 1
+        tc = 0.5 * (t[ch - 1] + t[ch])
+    G = np.full(len(grid), goals[0])
+    for c, g in zip(tc, goals[np.flatnonzero(np.diff(goals)) + 1]):
+        G[grid >= c] = g
+    W = servo.simulate(grid, G[None], np.zeros(1), 3000.0, 0.03)[0]
+    return pd.DataFrame({"t": t, "goal_1": goals, "present_1": W[k]})
+
+
+@pytest.mark.parametrize("timing", ["row", "interval"])
+def test_servo_residual_reads_the_logs_goal_timing(timing):
+    """Read with its own goal timing, a model servo's log leaves under 3 ticks of residual; read
+    with the other, a goal acts half a log interval early or late: tens of ticks at a step."""
+    sv = _model_log(timing, np.random.default_rng(3))
+    other = {"row": "interval", "interval": "row"}[timing]
+    _, own = heldbase.servo_residual(sv, 3000.0, 0.03, servos=(1,), timing=timing)
+    _, wrong = heldbase.servo_residual(sv, 3000.0, 0.03, servos=(1,), timing=other)
+    assert np.max(own) < 3.0
+    assert np.max(wrong) > 10.0
+
+
+def test_peak_rate_reads_a_ramp_through_timestamp_jitter():
+    """A servo at its rate ceiling (2900 tick/s) read every 10 ms, each read stamped up to 1 ms
+    off (20 draws): the 50 ms least-squares slope reads within 5 % of the rate, its median excess
+    under half that of one 20 ms difference (the estimator it replaced, which reads the jitter)."""
+    t_true = np.arange(0.0, 0.6, 0.01)
+    w = np.clip(2900.0 * (t_true - 0.1), 0.0, 2900.0 * 0.4)[:, None] * np.ones(3)
+    (exact,) = servo.peak_rates([dict(t=t_true, present=w)])
+    assert exact == pytest.approx(2900.0, rel=1e-9)  # exact stamps: the slope itself
+    peak, two = [], []
+    for seed in range(20):
+        t = t_true + np.random.default_rng(seed).uniform(-0.001, 0.001, len(t_true))
+        peak += list(servo.peak_rates([dict(t=t, present=np.round(w))]))
+        two.append((np.abs(w[2:] - w[:-2]) / (t[2:] - t[:-2])[:, None]).max())
+    assert np.max(np.abs(np.array(peak) / 2900.0 - 1.0)) < 0.05
+    assert np.median(peak) - 2900.0 < 0.5 * (np.median(two) - 2900.0)
+
+
 # --- claims ---------------------------------------------------------------------------------------
 
 def test_every_reference_claim_has_a_value_and_paper_values_come_from_the_reference():

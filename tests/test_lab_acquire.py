@@ -104,6 +104,7 @@ def test_esnap_import_completes_the_session_through_the_gate(first_session, tmp_
     for gid in got["recorded"]:
         meta = read_meta(raw / "groups" / gid / "meta.json")
         assert meta["source"] == "rig" and meta["plan_sha256"] == lab.doc["checksum"]
+        assert meta["goal_timing"] == "row"  # the client writes each goal in its row's cycle
         entry = next(e for e in lab.doc["groups"] if e["group_id"] == gid)
         # the capture is triggered by the program (its first frame 1 ms in): the sync says offset 0
         assert meta["clock"]["offset_s"] == 0.0, (gid, meta["clock"])

@@ -13,7 +13,7 @@ from embodied_snap.characterize import load
 from embodied_snap.characterize import servo as S
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import servo_id, write_json
+from embodied_snap.rawformat import goal_timing, servo_id, write_json
 from embodied_snap.sources import recordings
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -25,7 +25,8 @@ with tracked(snakemake):
         ids = [servo_id(meta["program"]["section"], k) for k in (1, 2, 3)]
         bursts.append(dict(t=sv.t.to_numpy(), goal=sv[[f"goal_{i}" for i in ids]].to_numpy(float),
                            present=sv[[f"present_{i}" for i in ids]].to_numpy(float),
-                           t_changes=(meta["labels"]["t_up"], meta["labels"]["t_down"])))
+                           t_changes=(meta["labels"]["t_up"], meta["labels"]["t_down"]),
+                           timing=goal_timing(meta)))
     fit = S.fit(bursts)
     # The rated no-load speed is a datasheet value (config rig.rated_speed_tick_s): Eq. 2 uses it
     # as the conservative ceiling.

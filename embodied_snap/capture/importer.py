@@ -48,8 +48,8 @@ MIN_PEAK_CORRELATION = 0.4
 OUTCOME_LABELS = ("attached", "retrieved", "snap_speed_event")
 MEASURED_LABELS = ("snap_speed_event",)  # computed here from the take, never asked of the operator
 # What a servo folder's meta.json passes on (esnap deploy's and esnap lab acquire's)
-FOLDER_KEYS = ("group_id", "evidence_set", "category", "recorded_at", "program", "target", "manifest_sha256",
-               "plan_sha256", "protocol_version", "axis")
+FOLDER_KEYS = ("group_id", "evidence_set", "category", "recorded_at", "program", "target", "goal_timing",
+               "manifest_sha256", "plan_sha256", "protocol_version", "axis")
 PASSED_ON = ("manifest_sha256", "plan_sha256", "protocol_version")  # provenance kept in the group's meta.json
 
 
@@ -88,7 +88,7 @@ def load_session(path) -> list[TakeSpec]:
             events = {**{k2: v for k2, v in side_labels.items() if k2.startswith("t_")}, **side.get("events", {}),
                       **events}
             labels = {k2: v for k2, v in side_labels.items() if k2 in OUTCOME_LABELS}
-        for k2 in ("group_id", "evidence_set", "category", "recorded_at", "target"):
+        for k2 in ("group_id", "evidence_set", "category", "recorded_at", "target", "goal_timing"):
             if k2 in t:
                 meta[k2] = t[k2]
         missing = [k2 for k2 in ("group_id", "evidence_set", "category", "recorded_at") if k2 not in meta]
@@ -403,8 +403,9 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
         **{k: spec.meta[k] for k in ("group_id", "evidence_set", "category", "session", "recorded_at")},
     )
     meta["program"] = spec.meta.get("program", {})
-    if "target" in spec.meta:
-        meta["target"] = spec.meta["target"]
+    for k in ("target", "goal_timing"):
+        if k in spec.meta:
+            meta[k] = spec.meta[k]
     meta.update(base_and_axis(mocap))
     meta["labels"] = labels
     meta["clock"] = clock

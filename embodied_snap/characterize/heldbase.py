@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..rawformat import goal_timing
 from . import mocap as M
 from .servo import DT, goal_on_grid, simulate
 
@@ -37,14 +38,15 @@ def fire_time(t, x, thr) -> float:
     return float(t[np.argmax(hit)]) if hit.any() else float("nan")
 
 
-def servo_residual(sv, rate, tau, servos=(1, 2, 3)) -> tuple[np.ndarray, np.ndarray]:
-    """|present - model(goal)| of the given servos at the log times (max over servos)."""
+def servo_residual(sv, rate, tau, servos=(1, 2, 3), timing="interval") -> tuple[np.ndarray, np.ndarray]:
+    """|present - model(goal)| of the given servos at the log times (max over servos); `timing`:
+    the log's goal timing (rawformat.GOAL_TIMING)."""
     t = sv.t.to_numpy()
     grid = np.arange(0.0, t[-1] + DT, DT)
     idx = np.clip(np.round(t / DT).astype(int), 0, len(grid) - 1)
     res = []
     for j in servos:
-        g = goal_on_grid(t, sv[f"goal_{j}"].to_numpy(float), grid)
+        g = goal_on_grid(t, sv[f"goal_{j}"].to_numpy(float), grid, timing=timing)
         w = simulate(grid, g[None], np.array([sv[f"present_{j}"].iloc[0]], float), rate, tau)[0]
         res.append(np.abs(sv[f"present_{j}"].to_numpy(float) - w[idx]))
     return t, np.max(res, 0)
@@ -54,7 +56,7 @@ def trial(mc, sv, meta, servo_fit, thr, max_gap_s: float) -> dict:
     mc = M.on_grid(mc)  # smooth3 spans the same time at any capture rate
     t = mc.t.to_numpy()
     lab = meta["labels"]
-    ts, res = servo_residual(sv, servo_fit["rate_tick_s"], servo_fit["tau_s"])
+    ts, res = servo_residual(sv, servo_fit["rate_tick_s"], servo_fit["tau_s"], timing=goal_timing(meta))
     fire = res > thr["residual_ticks"]
     t_s1 = lab.get("t_s1", np.nan)
     near = np.abs(ts - t_s1) <= 0.1

@@ -350,6 +350,10 @@ def _sigterm(signum, frame):
     raise DeployError("terminated (SIGTERM)")
 
 
+# execute() writes each row's goal in that row's cycle, before its sync-read (rawformat.GOAL_TIMING)
+LOG_GOAL_TIMING = "row"
+
+
 def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray:
     """Play the schedule open loop; returns the servo log (T, 1 + 27): t, then goal, present,
     current per servo. Every goal is in `goals` before this is called, and nothing here writes it.
@@ -498,7 +502,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     if out_dir is not None:
         meta = dict(format_version=1, group_id=group_id, evidence_set="deployment", category="placement",
                     session="lab", recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",
-                    base=dict(pos=[0.0, 0.0, 0.0], quat=[1.0, 0.0, 0.0, 0.0]),
+                    goal_timing=LOG_GOAL_TIMING, base=dict(pos=[0.0, 0.0, 0.0], quat=[1.0, 0.0, 0.0, 0.0]),
                     axis=man["workspace"]["hanging_axis"], manifest_sha256=man["checksum"],
                     program=dict(kind="primitive", **{k: round(v, 4) for k, v in cmd.items()},
                                  target_m=[float(x) for x in np.ravel(target)]),

@@ -96,7 +96,7 @@ def group_meta(doc: dict, entry: dict, log: np.ndarray, k_cue: int | None) -> di
     meta = dict(format_version=RF.FORMAT_VERSION, group_id=entry["group_id"], evidence_set=entry["evidence_set"],
                 category=entry["category"], session=entry["session"],
                 recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",
-                program=entry["program"], labels=dict(entry["phases"]), events={},
+                goal_timing=client.LOG_GOAL_TIMING, program=entry["program"], labels=dict(entry["phases"]), events={},
                 plan_sha256=doc["checksum"], protocol_version=doc["protocol_version"])
     if k_cue is not None:  # when the cue sounded, on the servo log's clock
         meta["events"]["base_event_t"] = round(float(log[min(k_cue, len(log) - 1), 0]), 4)
