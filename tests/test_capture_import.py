@@ -19,8 +19,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from embodied_snap.cli import main
 from embodied_snap.capture.importer import SESSION_SCHEMA
+from embodied_snap.cli import main
 from embodied_snap.rawformat import BODIES, GOAL_TIMING, read_meta
 
 from fakerig import write_fake_group, write_fake_raw
