@@ -220,19 +220,34 @@ def test_carried_state_vs_reencoded_window(windows, trained):
     assert float(gap) < 0.5 * float(err) + 1e-4
 
 
-def test_ensemble_rollout_shapes(tmp_path, windows, trained):
-    _, va = windows
+def test_ensemble_rollout_shapes_mean_and_disagreement_known_answer(tmp_path, windows):
+    """Three members (saved and loaded) that are the prior plus a constant tip residual of +b, 0 and
+    -b along x. From the same start, member s's tip differs from the middle one's by b_s k(k+1)/2 at
+    step k (the constant-velocity prior integrates a constant residual twice). Known answer: the
+    ensemble mean is the middle member, and the disagreement (mean distance of the members to the
+    mean) is (b + 0 + b)/3 * k(k+1)/2 = b k(k+1)/3: 0 at k = 0, 2b/3 at k = 1, 200 b at k = 24."""
+    tr, va = windows
+    b = 1e-4  # m per step^2
     paths = []
-    for s in range(3):
+    for s, sign in enumerate((1.0, 0.0, -1.0)):
+        m = Dynamics(norm_stats(tr["X"], tr["U"], tr["group"]), LOOKAHEAD)  # zero head: f_cv alone
+        with torch.no_grad():
+            m.head.bias[TIP.start] = sign * b / m.r_sd[TIP.start]  # residual sign * b along tip x
         p = tmp_path / f"seed{s}.pt"
-        M.save(trained[0], p)
+        M.save(m, p)
         paths.append(p)
     ens = Ensemble(paths, device="cpu")
     W = T.prepare(va)
     xs, us, _ = T.batch(W, W["anchors"][:6])
     out = ens.rollout(xs.reshape(2, 3, 21, 21), us.reshape(2, 3, *us.shape[1:]), HORIZON)
     assert out["tip"].shape == (3, 2, 3, 26, 3) and out["disagreement"].shape == (2, 3, 26)
-    np.testing.assert_allclose(out["disagreement"], 0, atol=1e-6)  # identical members agree
+    k = np.arange(HORIZON + 1)
+    offset = b * k * (k + 1) / 2
+    np.testing.assert_allclose(out["tip"][0, ..., 0] - out["tip"][1, ..., 0], np.broadcast_to(offset, (2, 3, 26)),
+                               atol=2e-6)
+    np.testing.assert_allclose(out["mean"], out["tip"][1], atol=2e-6)
+    np.testing.assert_allclose(out["disagreement"], np.broadcast_to(b * k * (k + 1) / 3, (2, 3, 26)), atol=2e-6)
+    assert out["disagreement"][0, 0, 24] == pytest.approx(200 * b, abs=2e-6)
 
 
 def test_stacked_ensemble_equals_each_model(windows, trained):

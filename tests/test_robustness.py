@@ -2,6 +2,7 @@
 stopped there, a larger one exactly the run continued, uniform workspace targets, rankings and claims."""
 
 import numpy as np
+import pytest
 from test_policy import RANGES, ToySim, _workspace
 
 from embodied_snap import bearing as BR
@@ -90,19 +91,21 @@ def test_rankings_and_whether_they_hold():
                                                        f"{ref['reward_shared_sd']['paper']:.4g}]"
 
 
-def test_on_the_reach_shell_distance_and_radius_disagree_in_sign():
-    """Targets near the arm's reach lie on a shell about the base: d falls as the target rises, so a
-    command that grows with height and radius correlates negatively with d (docs/policy.md)."""
+def test_correlations_known_answer_distance_and_radius_disagree_in_sign():
+    """analysis.correlations on three targets whose centred columns are multiples of a = (-1, 0, 1),
+    b = (-1, 1, 0) or c = (0, -1, 1): the Pearson r of two such columns is their cosine, +-1 or
+    +-1/2 (a.b = a.c = 1, b.c = -1, each of norm sqrt 2). The target rises (e ~ a) while its distance
+    falls (d ~ -a) and its radius grows (r ~ b), as on the reach shell (docs/policy.md); rho3 ~ b,
+    rho2 ~ a, tau ~ -b, dphi ~ c. Known answer: r(d, e) = -1; rho3: height +1/2, distance -1/2,
+    radius +1; rho2: distance -1, radius +1/2; tau: distance +1/2, radius -1; dphi: height +1/2.
+    The signs with distance are opposite to those with radius, and each value names its pair."""
     import pandas as pd
 
     from embodied_snap.policy.analysis import correlations
 
-    rng = np.random.default_rng(0)
-    theta = rng.uniform(0.3, 1.2, 400)  # angle from straight down
-    d = 0.80 + 0.08 * np.cos(theta) ** 2 + rng.normal(0, 0.005, 400)  # farthest straight down
-    e, r = -d * np.cos(theta), d * np.sin(theta)
-    cmd = 2800 + 300 * theta
-    df = pd.DataFrame(dict(d_m=d, e_m=e, r_m=r, rho3=cmd, rho2=cmd, tau_s=0.6 - cmd / 1e4, dphi_deg=0 * cmd))
-    c = correlations(df)
-    assert c["targets_distance_height"] < -0.5
-    assert c["rho3_distance"] < 0 < c["rho3_radius"] and c["tau_radius"] < 0 < c["tau_distance"]
+    a, b, c = np.array([-1.0, 0, 1]), np.array([-1.0, 1, 0]), np.array([0.0, -1, 1])
+    df = pd.DataFrame(dict(e_m=-0.80 + 0.05 * a, d_m=0.80 - 0.04 * a, r_m=0.30 + 0.1 * b, rho3=2900 + 200 * b,
+                           rho2=2700 + 150 * a, tau_s=0.55 - 0.05 * b, dphi_deg=3.0 * c))
+    assert correlations(df) == pytest.approx(dict(
+        targets_distance_height=-1.0, rho3_height=0.5, rho3_distance=-0.5, rho3_radius=1.0,
+        rho2_distance=-1.0, rho2_radius=0.5, tau_distance=0.5, tau_radius=-1.0, dphi_height=0.5), abs=1e-9)
