@@ -106,7 +106,7 @@ def cmd_twin(a) -> int:
     _made_dir(raw, "--raw-dir")  # after every check: a refused command leaves nothing behind
     t0 = time.perf_counter()
     # Every group's randomness comes from (seed, group_id) alone, so any partition gives the same bytes.
-    proto = protocol.params(cfg, "primitive", "rig", "thresholds")
+    proto = protocol.params(cfg, *protocol.ACQUISITION)
     tw = cfg["twin"]
     parts = [(plan.iloc[k :: a.jobs], raw, cfg["seed"], proto, tw["dt"], tw["held_base"]) for k in range(a.jobs)]
     with Pool(a.jobs) as pool:

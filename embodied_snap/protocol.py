@@ -37,6 +37,7 @@ class Windows:
     stride: int
     snap_speed_mps: float
     fast_speed_mps: float
+    per_dynamics_group: int  # the acquisition records a dynamics group this long (paper IV-A)
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,9 @@ class Protocol:
     rig: Rig | None = None
     thresholds: Thresholds | None = None
 
+
+# What the acquisition's programs read (the simulated rig's, esnap lab's plan, esnap twin acquire).
+ACQUISITION = ("sampling", "windows", "primitive", "rig", "thresholds")
 
 _CLASSES = {"sampling": Sampling, "windows": Windows, "primitive": Primitive, "rig": Rig,
             "thresholds": Thresholds}

@@ -6,6 +6,19 @@ from __future__ import annotations
 import numpy as np
 
 
+def mat_apply(R, p):
+    """R p for vectors p (..., 3), in elementwise products and sums: a matrix product goes through
+    BLAS, whose kernels (and their last bits) differ between CPUs, and a recording's bytes must not."""
+    p = np.asarray(p, float)
+    return p[..., :1] * R[:, 0] + p[..., 1:2] * R[:, 1] + p[..., 2:3] * R[:, 2]
+
+
+def norm3(v):
+    """|v| of vectors v (..., 3), elementwise (as mat_apply, no BLAS dot)."""
+    v = np.asarray(v, float)
+    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1] + v[..., 2] * v[..., 2])
+
+
 def qmul(a, b):
     w1, x1, y1, z1 = np.moveaxis(a, -1, 0)
     w2, x2, y2, z2 = np.moveaxis(b, -1, 0)

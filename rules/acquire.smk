@@ -18,7 +18,7 @@ checkpoint twin_acquire:
         groups=lambda wc: select(shard=wc.shard).to_dict("records"),
         raw=RAW,
         seed=config["seed"],
-        protocol=protocol_params("primitive", "rig", "thresholds"),
+        protocol=protocol_params(*protocol.ACQUISITION),
         dt=config["twin"]["dt"],
         hold=config["twin"]["held_base"],
     script:

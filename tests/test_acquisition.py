@@ -11,6 +11,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import yaml
 
 from embodied_snap.acquisition import draws as D
@@ -37,6 +38,22 @@ def test_smoke_acquisition_is_byte_identical_to_the_rig_before_the_move(tmp_path
     want = json.loads(BEFORE.read_text())
     assert sorted(got) == sorted(want)
     assert {k for k in want if got[k] != want[k]} == set()
+
+
+def test_a_dynamics_group_gives_the_paper_s_windows_per_group(tmp_path):
+    """A dynamics group is recorded long enough for windows.per_dynamics_group windows (paper
+    IV-A: 11,284 sealed windows from 20 groups): resampled and cut into windows as the dynamics
+    stage does, a smoke group gives that many to within one grid frame."""
+    from embodied_snap.resample import resample_group
+    from embodied_snap.windows import make_windows
+
+    row = next(r for r in smoke_groups().to_dict("records") if r["category"] == "sealed")
+    acquire_groups(pd.DataFrame([row]), tmp_path, seed=CONFIG["seed"], proto=PROTO, dt=CONFIG["twin"]["dt"],
+                   hold=HOLD, progress=False)
+    frames = resample_group(tmp_path, row["group_id"], PROTO.sampling.hz, PROTO.sampling.max_gap_s)
+    n = len(make_windows(frames.assign(group_id=row["group_id"]), PROTO.windows)["anchors"])
+    assert abs(n - PROTO.windows.per_dynamics_group) <= 1, n
+    assert CONFIG["windows"]["per_dynamics_group"] == round(11284 / 20)
 
 
 def test_a_groups_draws_do_not_depend_on_its_neighbours():

@@ -82,6 +82,7 @@ def draw_program(row: dict, r: np.random.Generator, proto: Protocol) -> dict:
             prog.update(jit(200.0), tau=float(r.uniform(0.3, 0.8)))
         elif cat == "characterisation":
             prog.update(rho1=_uniform(r, box["rho1"]), rho2=_uniform(r, box["rho2"]))
+        prog["record_s"] = round(P.dynamics_record_s(proto), 4)  # drawn from no stream
     elif es == "held_base":
         prog.update(jit(150.0), tau=_uniform(r, box["tau"]))
     spread = 2.0 if es == "delay_sweep" else 20.0

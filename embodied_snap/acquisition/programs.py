@@ -14,6 +14,7 @@ import numpy as np
 from ..primitive import cable_gains as _g
 from ..primitive import release_goals, section_goals
 from ..protocol import Protocol
+from ..windows import window_span
 
 PLAN_MARGIN = 0.9  # preload ramps are planned at this fraction of the rated speed: under the ceiling
 # The acquisition's operating point: where release-mode, sweep and held-base trials sit
@@ -25,6 +26,15 @@ T_HANG = 0.25  # s of free hanging before anything moves
 T_SETTLE = 0.5  # s held at full preload
 T_S2 = 1.0  # s from S3 slack to the start of the S2 release: the latched tip settles
 T_AFTER = 1.1  # s recorded after the S1 release
+
+
+def dynamics_record_s(proto: Protocol) -> float:
+    """How long a dynamics group is recorded: long enough for config windows.per_dynamics_group
+    windows, as the paper's groups are (IV-A: 11,284 sealed windows from 20 groups). A group of n
+    grid frames gives n - before - after windows (windows.window_span)."""
+    w = proto.windows
+    before, after = window_span(w.history, w.lookahead, w.horizon)
+    return (w.per_dynamics_group + before + after) / proto.sampling.hz
 
 
 def sweep_tau(n: int) -> float:
@@ -63,7 +73,8 @@ def primitive(p: dict, bearing: float, dt: float, proto: Protocol, ramp_s: float
     else:
         t2 = t_s + T_S2
     t1 = t2 + s2_ramp + p["tau"] if ramp_s > 0 else t2 + p["tau"]
-    t_end = t1 + ramp_s + T_AFTER
+    # a dynamics group goes on recording the hanging arm to its length (draws.draw_program)
+    t_end = max(t1 + ramp_s + T_AFTER, p.get("record_s", 0.0))
     t = np.arange(int(round(t_end / dt))) * dt
     goals = np.zeros((len(t), 9))
     ramp = (t >= T_HANG) & (t < T_HANG + dur)

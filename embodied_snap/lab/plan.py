@@ -23,7 +23,7 @@ from ..deploy import controltable as CT
 from ..deploy.manifest import SERVO_IDS, widened
 from ..files import write_text
 from ..plan import twin_plan
-from ..protocol import from_params, params
+from ..protocol import ACQUISITION, from_params, params
 from ..rawformat import CATEGORIES, EVIDENCE_SETS
 
 FORMAT = "esnap-lab-plan/1"
@@ -98,7 +98,7 @@ def build(config: dict, budget: str, place=None) -> dict:
     suggests where a target stands (the CLI gives the simulated rig's nominal strike; None: no
     suggestion, the operator places it at the strike point and the capture measures it)."""
     dep = config["deployment"]
-    proto = from_params(params(config, "primitive", "rig", "thresholds"))
+    proto = from_params(params(config, *ACQUISITION))
     groups = twin_plan(config["budgets"][budget]["groups"], config["sessions"]).to_dict("records")
     entries, traces = [], []
     for row in sorted(groups, key=_order):
@@ -123,7 +123,7 @@ def build(config: dict, budget: str, place=None) -> dict:
         entries.append(e)
     doc = dict(
         format=FORMAT, budget=budget, seed=int(config["seed"]), protocol_version=protocol_version(),
-        protocol=params(config, "primitive", "rig", "thresholds"),
+        protocol=params(config, *ACQUISITION),
         servos=dict(ids=SERVO_IDS, model_number=CT.XM430_W350, operating_mode=CT.EXTENDED_POSITION_MODE,
                     baud=dep["baud"], hz=dep["servo_hz"], watchdog_ms=dep["watchdog_ms"],
                     reply_timeout_ms=dep["reply_timeout_ms"], reply_retries=dep["reply_retries"]),

@@ -17,6 +17,7 @@ from .. import rawformat as RF
 from ..acquisition import draws as D
 from ..acquisition import programs as P
 from ..protocol import Protocol
+from ..quat import mat_apply, norm3
 from . import mocap as MC
 from . import servo as SV
 from . import sim
@@ -58,12 +59,12 @@ def place_target(bearing: float, offset: np.ndarray, dt: float, proto: Protocol)
     nominal strike point, a little beyond it so the cup arrives still fast."""
     ns = nominal_strike(dt, proto)
     Ry = _rot_y(bearing - proto.primitive.phi0_deg)
-    v = Ry @ ns["vel"]
-    n = -v / np.linalg.norm(v)  # face normal points back at the incoming cup
-    pos = Ry @ ns["pos"] + 0.03 * (-n) + offset
+    v = mat_apply(Ry, ns["vel"])
+    n = -v / norm3(v)  # face normal points back at the incoming cup
+    pos = mat_apply(Ry, ns["pos"]) + 0.03 * (-n) + offset
     z = n
     x = np.cross([0.0, 1.0, 0.0], z)
-    x = x / np.linalg.norm(x) if np.linalg.norm(x) > 1e-6 else np.array([1.0, 0, 0])
+    x = x / norm3(x) if norm3(x) > 1e-6 else np.array([1.0, 0, 0])
     y = np.cross(z, x)
     R = np.stack([x, y, z], 1)
     from scipy.spatial.transform import Rotation

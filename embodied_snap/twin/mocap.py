@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..quat import from_rotvec as quat_from_rotvec
-from ..quat import qmul
+from ..quat import mat_apply, qmul
 from ..quat import to_matrix as quat_to_mat
 from ..rawformat import BODIES, MOCAP_HZ, mocap_columns, servo_columns
 from . import servo as SV
@@ -31,6 +31,10 @@ def _resample(t_step, x, t_out):
     return x[idx] * (1 - a) + x[idx + 1] * a
 
 
+def _to_lab(p, R, B):
+    return mat_apply(R, p) + B
+
+
 def mocap_frame(trial, calib: dict, target: dict | None, rng: np.random.Generator) -> pd.DataFrame:
     """trial: sim.Trial in the arm frame. calib: base_pos (lab), base_quat (lab from arm)."""
     t_step = trial.t
@@ -43,16 +47,16 @@ def mocap_frame(trial, calib: dict, target: dict | None, rng: np.random.Generato
     quat = _resample(t_step, trial.quat, t)
     quat /= np.linalg.norm(quat, axis=-1, keepdims=True)
     poses = {}
-    poses["base"] = (_resample(t_step, trial.base, t) @ R.T + B, np.tile(qB, (n, 1)))  # the mount translates
+    poses["base"] = (_to_lab(_resample(t_step, trial.base, t), R, B), np.tile(qB, (n, 1)))  # the mount translates
     for j, b in enumerate(("s1", "s2", "tip")):
-        poses[b] = (pos[:, j] @ R.T + B, qmul(qB[None], quat[:, j]))
+        poses[b] = (_to_lab(pos[:, j], R, B), qmul(qB[None], quat[:, j]))
     if target is not None and trial.target_pos is not None:  # a free block (deployment): it moves
         tq = _resample(t_step, trial.target_quat, t)
         tq /= np.linalg.norm(tq, axis=-1, keepdims=True)
-        poses["target"] = (_resample(t_step, trial.target_pos, t) @ R.T + B, qmul(qB[None], tq))
+        poses["target"] = (_to_lab(_resample(t_step, trial.target_pos, t), R, B), qmul(qB[None], tq))
     elif target is not None:
         poses["target"] = (
-            np.tile(np.asarray(target["pos"]) @ R.T + B, (n, 1)),
+            np.tile(_to_lab(target["pos"], R, B), (n, 1)),
             np.tile(qmul(qB, target["quat"]), (n, 1)),
         )
     cols = {"t": t}
