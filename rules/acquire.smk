@@ -51,6 +51,8 @@ rule twin_truth:
     params:
         seed=config["seed"],
         sessions=config["sessions"],
+        # it runs the acquisition's calibration programs (acquisition/programs.py)
+        protocol=protocol_params(*protocol.ACQUISITION),
     script:
         "../workflow_scripts/twin_truth.py"
 
