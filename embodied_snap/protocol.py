@@ -40,6 +40,11 @@ class Windows:
     per_dynamics_group: int  # the acquisition records a dynamics group this long (paper IV-A)
 
 
+def window_span(history: int, lookahead: int, horizon: int) -> tuple[int, int]:
+    """Rows needed before and after an anchor: x/u history back, targets and rollout commands on."""
+    return history - 1, max(horizon, horizon - 1 + lookahead)
+
+
 @dataclass(frozen=True)
 class Primitive:
     """The snap primitive's fixed parts (paper III-B, IV-C) and its commanded ranges (Eq. 7-8)."""

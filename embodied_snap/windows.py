@@ -15,17 +15,12 @@ import numpy as np
 import pandas as pd
 
 from .files import write_atomic
-from .protocol import Windows
+from .protocol import Windows, window_span
 from .resample import COMMAND_COLUMNS, STATE_COLUMNS
 
 TIP_COLUMNS = ["tip_x", "tip_y", "tip_z"]
 # Relative tolerance on the grid step inside a group: the resampler writes exact multiples.
 _GRID_TOL = 1e-3
-
-
-def window_span(history: int, lookahead: int, horizon: int) -> tuple[int, int]:
-    """Rows needed before and after an anchor: x/u history back, targets and rollout commands on."""
-    return history - 1, max(horizon, horizon - 1 + lookahead)
 
 
 def make_windows(frames: pd.DataFrame, windows: Windows) -> dict[str, np.ndarray]:

@@ -13,8 +13,7 @@ import numpy as np
 
 from ..primitive import cable_gains as _g
 from ..primitive import release_goals, section_goals
-from ..protocol import Protocol
-from ..windows import window_span
+from ..protocol import Protocol, window_span
 
 PLAN_MARGIN = 0.9  # preload ramps are planned at this fraction of the rated speed: under the ceiling
 # The acquisition's operating point: where release-mode, sweep and held-base trials sit
@@ -31,7 +30,7 @@ T_AFTER = 1.1  # s recorded after the S1 release
 def dynamics_record_s(proto: Protocol) -> float:
     """How long a dynamics group is recorded: long enough for config windows.per_dynamics_group
     windows, as the paper's groups are (IV-A: 11,284 sealed windows from 20 groups). A group of n
-    grid frames gives n - before - after windows (windows.window_span)."""
+    grid frames gives n - before - after windows (protocol.window_span)."""
     w = proto.windows
     before, after = window_span(w.history, w.lookahead, w.horizon)
     return (w.per_dynamics_group + before + after) / proto.sampling.hz
