@@ -32,7 +32,8 @@ SERVO_HZ = 100.0
 # own rate and the log samples them: the simulated rig); "row" -- written in the row's own bus
 # cycle, just before its sync-read (esnap lab and esnap deploy log so, as a live bus does).
 # Recordings without the key are "interval".
-GOAL_TIMING = ("interval", "row")
+GOAL_INTERVAL, GOAL_ROW = "interval", "row"
+GOAL_TIMING = (GOAL_INTERVAL, GOAL_ROW)
 TICKS_PER_REV = 4096
 N_SERVOS = 9
 
@@ -106,7 +107,7 @@ def mocap_columns() -> list[str]:
 
 def goal_timing(meta: dict) -> str:
     """The servo log's goal timing (GOAL_TIMING); the gate has checked the value."""
-    return meta.get("goal_timing", GOAL_TIMING[0])
+    return meta.get("goal_timing", GOAL_INTERVAL)
 
 
 def servo_columns() -> list[str]:

@@ -17,6 +17,7 @@ import yaml
 from embodied_snap.acquisition import draws as D
 from embodied_snap.acquisition import programs as P
 from embodied_snap.plan import twin_plan
+from embodied_snap.reference import paper_values
 from embodied_snap.twin.acquire import acquire_groups
 
 from paper_protocol import HOLD, PROTO
@@ -53,7 +54,10 @@ def test_a_dynamics_group_gives_the_paper_s_windows_per_group(tmp_path):
     frames = resample_group(tmp_path, row["group_id"], PROTO.sampling.hz, PROTO.sampling.max_gap_s)
     n = len(make_windows(frames.assign(group_id=row["group_id"]), PROTO.windows)["anchors"])
     assert abs(n - PROTO.windows.per_dynamics_group) <= 1, n
-    assert CONFIG["windows"]["per_dynamics_group"] == round(11284 / 20)
+    # the config's count is the paper's sealed windows over the paper budget's sealed groups
+    paper = paper_values()["dynamics"]["sealed_n_windows"]["paper"]
+    sealed = CONFIG["budgets"]["paper"]["groups"]["dynamics"]["sealed"]
+    assert CONFIG["windows"]["per_dynamics_group"] == round(paper / sealed)
 
 
 def test_a_groups_draws_do_not_depend_on_its_neighbours():

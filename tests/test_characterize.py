@@ -342,13 +342,11 @@ def _model_log(timing, rng):
     goals = np.where((np.arange(len(t)) // 15) % 2 == 1, 400.0, 0.0)  # a step every 15 rows
     grid = np.arange(0.0, t[-1] + servo.DT, servo.DT)
     k = np.round(t / servo.DT).astype(int)
-    if timing == "row":
-        tc = t[np.flatnonzero(np.diff(goals)) + 1]
-    else:  # each change half-way through its log interval, on the 1 kHz loop
-        ch = np.flatnonzero(np.diff(goals)) + 1
-        tc = 0.5 * (t[ch - 1] + t[ch])
+    ch = np.flatnonzero(np.diff(goals)) + 1  # the rows that show a new goal
+    # "row": it acts from that row's time; "interval": half-way through the interval before it
+    tc = t[ch] if timing == "row" else 0.5 * (t[ch - 1] + t[ch])
     G = np.full(len(grid), goals[0])
-    for c, g in zip(tc, goals[np.flatnonzero(np.diff(goals)) + 1]):
+    for c, g in zip(tc, goals[ch]):
         G[grid >= c] = g
     W = servo.simulate(grid, G[None], np.zeros(1), 3000.0, 0.03)[0]
     return pd.DataFrame({"t": t, "goal_1": goals, "present_1": W[k]})

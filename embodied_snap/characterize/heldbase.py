@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rawformat import goal_timing
+from ..rawformat import GOAL_INTERVAL, goal_timing
 from . import mocap as M
 from .servo import DT, goal_on_grid, simulate
 
@@ -38,7 +38,7 @@ def fire_time(t, x, thr) -> float:
     return float(t[np.argmax(hit)]) if hit.any() else float("nan")
 
 
-def servo_residual(sv, rate, tau, servos=(1, 2, 3), timing="interval") -> tuple[np.ndarray, np.ndarray]:
+def servo_residual(sv, rate, tau, servos=(1, 2, 3), timing=GOAL_INTERVAL) -> tuple[np.ndarray, np.ndarray]:
     """|present - model(goal)| of the given servos at the log times (max over servos); `timing`:
     the log's goal timing (rawformat.GOAL_TIMING)."""
     t = sv.t.to_numpy()

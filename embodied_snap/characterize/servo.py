@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
+from ..rawformat import GOAL_INTERVAL, GOAL_ROW
+
 DT = 0.001  # s, integration step of the model (servo log is ~100 Hz)
 
 
@@ -25,7 +27,7 @@ def simulate(t_grid, goal, w0, rate, tau):
     return w
 
 
-def goal_on_grid(t_log, goal_log, t_grid, t_changes=(), timing="interval"):
+def goal_on_grid(t_log, goal_log, t_grid, t_changes=(), timing=GOAL_INTERVAL):
     """The commanded goal as a step function. A change is seen at the first log sample that shows
     it; it happened at a labelled command time if one lies in that log interval, otherwise, by the
     log's goal timing (rawformat.GOAL_TIMING), at the interval's midpoint ("interval") or at the
@@ -35,7 +37,7 @@ def goal_on_grid(t_log, goal_log, t_grid, t_changes=(), timing="interval"):
     for k in ch:
         lo, hi = t_log[k - 1], t_log[k]
         at = [c for c in t_changes if lo < c <= hi]
-        tc = at[0] if at else hi if timing == "row" else 0.5 * (lo + hi)
+        tc = at[0] if at else hi if timing == GOAL_ROW else 0.5 * (lo + hi)
         g[t_grid >= tc] = goal_log[k]
     return g
 
@@ -50,7 +52,7 @@ def prepare(bursts):
         idx = np.clip(np.round(b["t"] / DT).astype(int), 0, len(grid) - 1)
         for j in range(b["goal"].shape[1]):
             G.append(goal_on_grid(b["t"], b["goal"][:, j], grid, b.get("t_changes", ()),
-                                  b.get("timing", "interval")))
+                                  b.get("timing", GOAL_INTERVAL)))
             W0.append(b["present"][0, j])
             obs.append((len(G) - 1, idx, b["present"][:, j]))
     return grid, np.array(G), np.array(W0), obs
