@@ -42,7 +42,7 @@ def main():
     sel = search.Targets(pd.read_parquet(R / "policy/targets_selection.parquet"), ws)
     t0 = time.perf_counter()
     run = search.cmaes(sim, a.arch, 0, train, tr["generation"].to_numpy(), sel, search.feature_stats(train),
-                       cfg["policy"]["ranges"], a.generations, budget["popsize"], cfg["policy"]["sigma0"],
+                       cfg["policy"]["ranges"], a.generations, budget["popsize"], cfg["policy"]["start"],
                        progress=False)
     dt = time.perf_counter() - t0
     n = run["curve"][-1]["evaluations"]

@@ -85,6 +85,7 @@ rule policy_search:
         seed=lambda wc: int(wc.seed),
         generations=PBUDGET["generations"],
         popsize=PBUDGET["popsize"],
+        start=PCFG["start"],
         # where a smaller budget would have stopped: its selection is kept (rules/robustness.smk)
         snapshots=[
             round(f * PBUDGET["generations"])

@@ -18,7 +18,7 @@ def _run(generations, snapshots=(), resume=None, tr=None):
     gen = np.arange(len(tr)) // 8
     train, sel = search.Targets(tr, ws), search.Targets(targets.sample(ws, 16, 22, 180, 0.03), ws)
     return search.cmaes(ToySim(), "shared", 0, train, gen, sel, search.feature_stats(train), RANGES, generations,
-                        6, 0.5, progress=False, snapshots=snapshots, resume=resume)
+                        6, dict(init="zero", sigma0=0.5), progress=False, snapshots=snapshots, resume=resume)
 
 
 def _same(a, b):

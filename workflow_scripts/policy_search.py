@@ -28,7 +28,7 @@ with tracked(snakemake):
     norm = resume["norm"] if resume else search.feature_stats(train)
     run = search.cmaes(sim, P.arch, P.seed, train, tr["generation"].to_numpy(),
                        search.Targets(read_parquet(I.selection), ws), norm,
-                       P.policy["ranges"], P.generations, P.popsize, P.policy["sigma0"],
+                       P.policy["ranges"], P.generations, P.popsize, P.start,
                        snapshots=P.snapshots, resume=resume)
     c = run["curve"]
     print(f"{P.arch} seed {P.seed}: held-out {c[0]['heldout_reward']:.3f} -> {c[-1]['heldout_reward']:.3f}, "

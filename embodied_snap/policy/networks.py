@@ -26,6 +26,27 @@ def n_params(arch: str) -> int:
     return sum(o * i + o for net in ARCHS[arch] for o, i in net)
 
 
+INITS = ("zero", "glorot")
+
+
+def initial(arch: str, start: dict, seed: int) -> np.ndarray:
+    """theta where a search starts (`policy.start`, docs/policy.md "Starting point"):
+    - zero: every weight and bias 0, so every architecture starts at mid-range commands;
+    - glorot: each layer's weights uniform on +-sqrt(6 / (fan_in + fan_out)) (Glorot and Bengio 2010,
+      the scale that keeps a tanh layer's activations and gradients at unit variance), biases 0;
+      drawn from the start's init_seed and the run's seed, so each run starts elsewhere."""
+    if start["init"] == "zero":
+        return np.zeros(n_params(arch))
+    assert start["init"] == "glorot", f"unknown start {start['init']!r}: one of {INITS}"
+    rng = np.random.default_rng([start["init_seed"], seed])
+    parts = []
+    for net in ARCHS[arch]:
+        for o, i in net:
+            a = np.sqrt(6 / (i + o))
+            parts += [rng.uniform(-a, a, o * i), np.zeros(o)]
+    return np.concatenate(parts)
+
+
 def _unpack(theta: np.ndarray, arch: str) -> list[list[tuple[np.ndarray, np.ndarray]]]:
     nets, k = [], 0
     for net in ARCHS[arch]:

@@ -63,9 +63,10 @@ def score(sim, jobs: list[tuple[dict, Targets]]) -> np.ndarray:
 
 
 def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
-          ranges: dict, generations: int, popsize: int, sigma0: float, progress: bool = True,
+          ranges: dict, generations: int, popsize: int, start: dict, progress: bool = True,
           snapshots=(), resume: dict | None = None) -> dict:
-    """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation.
+    """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation; start:
+    where it begins (`networks.initial`) and its initial step size sigma0.
 
     The held-out score of the mean after generation g rides in the batch of generation g + 1 (the
     mean that generation samples around), so each generation is one batch of rollouts.
@@ -78,7 +79,7 @@ def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select:
     and is written on its own."""
     npar = networks.n_params(arch)
     if resume is None:
-        es = cma.CMAEvolutionStrategy(np.zeros(npar), sigma0,
+        es = cma.CMAEvolutionStrategy(networks.initial(arch, start, seed), start["sigma0"],
                                       {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
         curve, best, snaps = [], (-np.inf, None, 0), {}
     else:  # the run's last held-out score is logged already
