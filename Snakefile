@@ -1,5 +1,6 @@
 # embodied-snap: from raw rig recordings to every figure of the paper, with lineage.
-# Targets: all (default), results/figures, robustness (the architecture benchmark's variants).
+# Targets: all (default), results/figures; after them, robustness (the architecture benchmark's
+# variants), sensitivity (its starting points) and landscape (the per-target optimum).
 from snakemake.utils import min_version, validate
 
 min_version("9.0")
@@ -40,6 +41,7 @@ include: "rules/dynamics.smk"
 include: "rules/policy.smk"
 include: "rules/ablation.smk"
 include: "rules/robustness.smk"
+include: "rules/sensitivity.smk"
 include: "rules/deploy.smk"
 include: "rules/lineage.smk"
 include: "rules/report.smk"
@@ -68,8 +70,22 @@ PRODUCTS = [
 ]
 
 
-# The robustness variants' products (`snakemake robustness`): the crate lists them once they exist.
-ROBUSTNESS = ["results/robustness/variants.csv", "results/figs/figS1_robustness.pdf"]
+# The architecture question's products, each its own target after `all` (at the paper budget each
+# takes most of an hour on two cores): the crate lists them once they exist.
+AFTER_ALL = {
+    "robustness": [
+        "results/robustness/variants.csv",
+        "results/figs/figS1_robustness.pdf",
+    ],
+    "sensitivity": [
+        "results/sensitivity/starts.csv",
+        "results/figs/figS2_sensitivity.pdf",
+    ],
+    "landscape": [
+        "results/landscape/summary.json",
+        "results/landscape/architectures.csv",
+    ],
+}
 
 
 rule all:
@@ -83,15 +99,28 @@ rule robustness:
     """The architecture benchmark's robustness variants (docs/policy.md): about an hour more on two
     cores at the paper budget, so not part of `all`."""
     input:
-        ROBUSTNESS,
+        AFTER_ALL["robustness"],
+
+
+rule sensitivity:
+    """The architecture benchmark from other starting points (docs/policy.md, "Starting point")."""
+    input:
+        AFTER_ALL["sensitivity"],
+
+
+rule landscape:
+    """What the landscape allows: the per-target optimum and the architectures against it."""
+    input:
+        AFTER_ALL["landscape"],
 
 
 rule crate:
-    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product, the
-    robustness variants' too once they exist (a later `snakemake all` then rewrites the crate).
+    """The run as a Workflow Run RO-Crate (Provenance Run Crate), after every other product, those
+    of the targets after `all` too once they exist (a later `snakemake all` then rewrites the crate).
     """
     input:
-        lambda wc: PRODUCTS + [f for f in ROBUSTNESS if Path(f).exists()],
+        lambda wc: PRODUCTS
+        + [f for fs in AFTER_ALL.values() for f in fs if Path(f).exists()],
         code=imports("crate"),
     output:
         "results/crate/ro-crate-metadata.json",

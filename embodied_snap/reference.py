@@ -72,6 +72,12 @@ def claim_rows(section: str, ours, artifacts: dict, path: str | Path = REFERENCE
     ]
 
 
+def by_construction(stage: str, claim_id: str, path: str | Path = REFERENCE) -> str | None:
+    """Why the simulated rig agrees with this claim by construction: its `by_construction:` (an input
+    of the rig taken from a paper result, docs/twin.md), else None."""
+    return ((paper_values(path).get(stage) or {}).get(claim_id) or {}).get("by_construction")
+
+
 def tolerance(stage: str, claim_id: str, path: str | Path = REFERENCE) -> float:
     """The relative tolerance the claims ledger allows a point value of `stage`: the claim's own
     `tolerance`, else `agreement.relative_tolerance`."""

@@ -181,7 +181,7 @@ rule characterize_heldbase:
         raw=RAW,
         groups=HELD_GROUPS,
         detectors=config["characterize"]["heldbase"],
-        protocol=protocol_params("sampling"),
+        protocol=protocol_params("sampling", "thresholds"),
     script:
         "../workflow_scripts/characterize_heldbase.py"
 

@@ -141,5 +141,7 @@ rule table_claims:
     priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
+    params:
+        simulated=TWIN,
     script:
         "../workflow_scripts/table_claims.py"

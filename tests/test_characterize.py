@@ -312,15 +312,29 @@ def test_base_detector_fires_after_the_event_causally():
     assert heldbase.fire_time(t[:k], x[:k], 2.0) == tf
 
 
-def test_heldbase_summary_and_best_clock():
-    trials = [dict(event=1.0 + 0.02 * i, t0=0.25, base=1.05 + 0.02 * i, neighbour=np.nan, residual=0.3,
-                   residual_trigger_max=12.0, residual_quiet_median=2.0) for i in range(10)]
-    trials += [dict(event=3.0, t0=0.25, base=3.5, neighbour=np.nan, residual=0.3,
-                    residual_trigger_max=12.0, residual_quiet_median=2.0)]
-    out = heldbase.summarize(trials, 0.1)
+def test_heldbase_rates_and_best_clock():
+    trials = [dict(event=1.0 + 0.02 * i, t0=0.25, base=1.05 + 0.02 * i, neighbour=np.nan, residual=0.3)
+              for i in range(10)]
+    trials += [dict(event=3.0, t0=0.25, base=3.5, neighbour=np.nan, residual=0.3)]
+    trials += [dict(event=np.nan, t0=0.25, base=3.5, neighbour=np.nan, residual=0.3)]  # no event: not counted
+    out = heldbase.rates(trials, 0.1)
+    assert out["n"] == 11
     assert out["fraction_within"]["base"] == pytest.approx(10 / 11)
     assert out["fraction_within"]["residual"] == 0.0
     assert out["fraction_within"]["clock"] == pytest.approx(10 / 11)  # one delay covers 1.00-1.18 s
+
+
+def test_heldbase_detectors_wait_for_their_arming_and_the_snap_is_the_first_fast_tip():
+    """Known answers: a 10 mm step at 0.5 s and another at 1.5 s; armed at 1.0 s, the detector fires
+    on the second. The snap is the first sample after t_s2 at the attachment speed."""
+    t = np.arange(0, 3, 1 / 240)
+    x = np.zeros((len(t), 3))
+    x[:, 0] = 10.0 * (t >= 0.5) + 10.0 * (t >= 1.5)
+    assert 0.48 <= heldbase.fire_time(t, x, 2.0) < 0.6  # (smooth3 spreads a step by a sample)
+    assert 1.48 <= heldbase.fire_time(t, x, 2.0, t_arm=1.0) < 1.6
+    v = np.where((t > 0.2) & (t < 0.3), 2.0, 0.0) + np.where(t >= 1.7, 1.2, 0.0)
+    assert heldbase.snap_time(t, v, 1.0, 1.0) == pytest.approx(t[t >= 1.7][0])
+    assert np.isnan(heldbase.snap_time(t, v, 1.0, 1.5))
 
 
 def test_servo_residual_zero_for_model_servo():

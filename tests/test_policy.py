@@ -139,7 +139,8 @@ def test_cmaes_improves_held_out_reward_deterministically():
     assert zero == pytest.approx(-0.1438, abs=1e-4)
     assert search.score(ToySim(), [(search.policy_actions("shared", np.zeros(155), sel, norm, RANGES), sel)])[0] \
         == pytest.approx(zero, abs=1e-12)
-    runs = [search.cmaes(ToySim(), "shared", 0, train, gen, sel, norm, RANGES, G, P, dict(init="zero", sigma0=0.1), progress=False)
+    start = dict(init="zero", sigma0=0.1)
+    runs = [search.cmaes(ToySim(), "shared", 0, train, gen, sel, norm, RANGES, G, P, start, progress=False)
             for _ in range(2)]
     assert runs[0]["curve"] == runs[1]["curve"] and runs[0]["theta"] == runs[1]["theta"]
     c = runs[0]["curve"]

@@ -1,4 +1,4 @@
-"""Held-base trials: causal detectors of the base deformation against the labelled event."""
+"""Held-base trials: causal detectors against the event (the snap; the hand's push for comparison)."""
 
 from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
 
@@ -17,9 +17,11 @@ sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
     p = snakemake.params
     servo_fit = json.load(open(snakemake.input.servo))
-    gap = from_params(p.protocol).sampling.max_gap_s  # mocap dropouts bridged
+    proto = from_params(p.protocol)
+    gap = proto.sampling.max_gap_s  # mocap dropouts bridged
     d = p.detectors  # config characterize.heldbase: thresholds and window_s
-    tr = [dict(group_id=g, **heldbase.trial(*load.group(p.raw, g), servo_fit, d, gap)) for g in p.groups]
+    snap = proto.thresholds.attach_speed_mps  # the snap: the snap_speed_event label's rule
+    tr = [dict(group_id=g, **heldbase.trial(*load.group(p.raw, g), servo_fit, d, gap, snap)) for g in p.groups]
     out = dict(heldbase.summarize(tr, d["window_s"]), recordings=recordings(p.groups, p.groups))
     print({k: v for k, v in out.items() if k != "trials"}, file=sys.stderr)
     write_json(out, snakemake.output[0])

@@ -27,7 +27,7 @@ BOOKKEEPING = frozenset({
 # after them, so `esnap audit` lists them in a chain but does not descend into them.
 GATES = frozenset({"check_separation", "prov_export", "crate"})
 # Rules that only name other targets and write nothing.
-TARGETS = frozenset({"all", "robustness"})
+TARGETS = frozenset({"all", "robustness", "sensitivity", "landscape"})
 # Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
 SOURCE_RULES = frozenset({"twin_acquire", "validate_shard", "resample_shard"})
 # Rules that write a file source.
@@ -51,6 +51,12 @@ ROBUSTNESS_RUNS = ("robustness_search_uniform", "robustness_search_longer", "rob
                    "robustness_evaluate")
 ROBUSTNESS_REPORTS = ("robustness_summary", "fig_robustness", "table_robustness_claims")
 ROBUSTNESS = (*ROBUSTNESS_RUNS, *ROBUSTNESS_REPORTS)
+# The benchmark from other starting points (rules/sensitivity.smk): runs on the benchmark's targets,
+# evaluated, summarised (the summary reads the evaluation targets' features for the slope probe);
+# and the landscape: the per-target optimum on the first evaluation targets, against the policies.
+SENSITIVITY_REPORTS = ("sensitivity_summary", "fig_sensitivity", "table_sensitivity")
+SENSITIVITY = ("sensitivity_search", "sensitivity_evaluate", *SENSITIVITY_REPORTS)
+LANDSCAPE = ("landscape_optimum", "landscape_summary")
 # Deployment (paper VI): the manifest exported from the selected policy, the trials that run it,
 # and its reports. Everything that fed the policy reaches all of these through the manifest.
 DEPLOY_REPORTS = ("deploy_table", "fig_deployment", "figures", LEDGER)
@@ -58,7 +64,7 @@ DEPLOY_RULES = ("deploy_manifest", "twin_deployment", *DEPLOY_REPORTS)
 # Everything that uses the GRU models (trained on train, selected on validation windows).
 MODEL_USERS = (
     "dynamics_validate", "dynamics_sealed_eval", "dynamics_gate", *POLICY_RUNS, *DYN_REPORTS,
-    *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *DEPLOY_RULES,
+    *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *SENSITIVITY, *LANDSCAPE, *DEPLOY_RULES,
 )
 
 
@@ -118,17 +124,21 @@ POLICY: dict[str, Source] = {
         ("twin_validation",), "only twin_validation reads the simulated rig's ground truth",
         held_out=True, readers=("twin_validation",)),
     "results/policy/targets_selection.parquet": Source(
-        (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *DEPLOY_RULES),
+        (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *SENSITIVITY, "landscape_summary",
+         *DEPLOY_RULES),
         "the selection targets select policies and the fixed primitive (and so the deployed policy), nothing else",
-        readers=("policy_search", "policy_fixed", "robustness_search_longer", "check_separation")),
+        readers=("policy_search", "policy_fixed", "robustness_search_longer", "sensitivity_search",
+                 "check_separation")),
     "results/policy/targets_evaluation.parquet": Source(
         ("policy_evaluate", "policy_fixed", "policy_summary", *POLICY_REPORTS, "ablation_bend", "ablation_perturb",
          "ablation_summary", "fig_ablation", "table_ablation_claims", "robustness_evaluate",
-         *ROBUSTNESS_REPORTS, LEDGER),
+         *ROBUSTNESS_REPORTS, "sensitivity_evaluate", *SENSITIVITY_REPORTS, *LANDSCAPE, LEDGER),
         "the evaluation targets are read only by the final evaluation, after selection (and the ablation's "
-        "analyses of the selected policy on them, and the budget variants' evaluations)",
+        "analyses of the selected policy on them, the variants' and starts' evaluations, and the "
+        "per-target optimum that bounds them)",
         held_out=True, readers=("policy_evaluate", "policy_fixed", "ablation_bend", "ablation_perturb",
-                                "robustness_evaluate", "check_separation")),
+                                "robustness_evaluate", "sensitivity_evaluate", "sensitivity_summary",
+                                *LANDSCAPE, "check_separation")),
     "results/ablation/targets_offset.parquet": Source(
         ("ablation_offsets", *ABLATION_EVAL),
         "the offset targets fit the event offsets of the release rules, nothing else",
@@ -194,7 +204,8 @@ def may_feed(source: str, rule: str, wildcards: dict) -> bool:
 
 # Each stage's reports (tables, figures, the ledger), as the rows above name them: a row that names
 # one of these whole feeds the stage's reports, not one report in particular (`needs`).
-REPORTS = (CHAR_REPORTS, DYN_REPORTS, POLICY_REPORTS, ROBUSTNESS_REPORTS, DEPLOY_REPORTS, ABLATION_EVAL[2:])
+REPORTS = (CHAR_REPORTS, DYN_REPORTS, POLICY_REPORTS, ROBUSTNESS_REPORTS, SENSITIVITY_REPORTS, DEPLOY_REPORTS,
+           ABLATION_EVAL[2:])
 
 
 def needs(evidence_set: str) -> list[str]:

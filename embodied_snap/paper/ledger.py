@@ -19,7 +19,7 @@ import pandas as pd
 
 from ..lineage import numbers
 from ..lineage.records import load_records
-from ..reference import tolerance
+from ..reference import by_construction, tolerance
 from ..sources import parse_source
 from . import html
 from .sections import section_key
@@ -27,8 +27,11 @@ from .sections import section_key
 COLUMNS = ("claim_id", "stage", "section", "quantity", "paper", "ours", "unit", "tolerance", "status",
            "agrees", "source", "artifact", "fed_by", "explained_in")
 AUDIT = "audit-"  # the id prefix of a claim's audit section in claims.html
-# status values
+# status values; BY_CONSTRUCTION: the simulated rig agrees because one of its inputs came from this
+# paper result (reference/paper_values.yaml `by_construction:`, docs/twin.md), never "agrees"
 AGREES, DIFFERS, NO_PAPER, NOT_MEASURED = "agrees", "differs", "no paper value", "not measured"
+BY_CONSTRUCTION = "by construction"
+TWIN_PROVENANCE = "docs/twin.md"  # where each simulated-rig number comes from
 
 
 def parse(v: str):
@@ -111,8 +114,10 @@ def _doc(stage: str, claim_id: str, root: Path) -> str:
     return own.relative_to(root).as_posix() if own.exists() else ""
 
 
-def ledger(files, root=".") -> list[dict]:
-    """The rows of results/tables/claims.csv, in the order of `files` and of each table."""
+def ledger(files, root=".", simulated: bool = True) -> list[dict]:
+    """The rows of results/tables/claims.csv, in the order of `files` and of each table. simulated:
+    the recordings are the simulated rig's, so a claim one of its inputs was taken from agrees "by
+    construction" (with a real rig's recordings it is judged like any other)."""
     root = Path(root)
     records = load_records(root)
     nums = numbers.Numbers(root, records)  # each artifact audited once, for all its rows
@@ -139,12 +144,15 @@ def ledger(files, root=".") -> list[dict]:
                 tol = tolerance(stage, r["claim_id"])
                 ok = agrees(p, o, tol)
                 status = NO_PAPER if p is None else NOT_MEASURED if ok is None else AGREES if ok else DIFFERS
+                built = simulated and status == AGREES and by_construction(stage, r["claim_id"])
+                status = BY_CONSTRUCTION if built else status
                 rows.append(dict(
                     claim_id=r["claim_id"], stage=stage, section=r["section"], quantity=r["quantity"],
                     paper=r["paper"], ours=r["ours"], unit=r["unit"], tolerance=tol, status=status,
                     agrees="" if ok is None else ok, source=src, artifact=numbers.artifacts(lin),
                     fed_by=numbers.fed_by(lin), _lineage=lin,
-                    explained_in=_doc(stage, r["claim_id"], root) if status == DIFFERS else "",
+                    explained_in=(_doc(stage, r["claim_id"], root) if status == DIFFERS
+                                  else TWIN_PROVENANCE if built else ""),
                 ))
     return rows
 
@@ -153,13 +161,16 @@ def counts(rows: list[dict]) -> dict:
     n = [r for r in rows if r["status"] != NO_PAPER]
     diff = [r for r in rows if r["status"] == DIFFERS]
     return dict(paper_numbers=len(n), agree=sum(r["status"] == AGREES for r in rows), differ=len(diff),
+                by_construction=sum(r["status"] == BY_CONSTRUCTION for r in rows),
                 not_measured=sum(r["status"] == NOT_MEASURED for r in rows),
                 unexplained=sum(not r["explained_in"] for r in diff))
 
 
 def count_line(rows: list[dict]) -> str:
     c = counts(rows)
-    return (f"{c['paper_numbers']} paper numbers, {c['agree']} reproduced within tolerance, {c['differ']} differ, "
+    return (f"{c['paper_numbers']} paper numbers, {c['agree']} reproduced within tolerance, "
+            f"{c['by_construction']} agree by construction (a simulated-rig input taken from that result), "
+            f"{c['differ']} differ, "
             f"each difference linked to the doc that explains it ({c['unexplained']} without one), "
             f"{c['not_measured']} not measured in this run")
 
@@ -175,7 +186,7 @@ def markdown(rows: list[dict]) -> str:
         rs = by[sec]
         c = counts(rs)
         out += [f"## {sec}", "", f"{c['paper_numbers']} paper numbers, {c['agree']} within tolerance, "
-                f"{c['differ']} differ", ""]
+                f"{c['by_construction']} by construction, {c['differ']} differ", ""]
         t = pd.DataFrame([[str(v) for v in (r["claim_id"], r["quantity"], r["paper"], r["ours"], r["unit"],
                                             r["status"], link(r), r["fed_by"])] for r in rs],
                          columns=["claim", "quantity", "paper", "ours", "unit", "status", "explained in", "fed by"])

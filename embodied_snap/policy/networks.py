@@ -61,21 +61,27 @@ def _unpack(theta: np.ndarray, arch: str) -> list[list[tuple[np.ndarray, np.ndar
     return nets
 
 
-def _forward(layers, x: np.ndarray) -> np.ndarray:
+def _forward(layers, x, tanh):
     for W, b in layers:
-        x = np.tanh(x @ W.T + b)  # tanh on every layer, the output included (Eq. 6)
+        x = tanh(x @ W.T + b)  # tanh on every layer, the output included (Eq. 6)
     return x
 
 
-def outputs(arch: str, theta: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """u (N, 6) in ACTIONS order for normalised target features g (N, 3)."""
-    nets = _unpack(np.asarray(theta, float), arch)
+def outputs(arch: str, theta, g):
+    """u (N, 6) in ACTIONS order for normalised target features g (N, 3). numpy arrays, or torch
+    tensors (theta and g both: a least-squares fit differentiates it, `landscape.fit_architecture`)."""
+    if type(theta).__module__.startswith("torch"):
+        import torch as xp
+    else:
+        xp, theta = np, np.asarray(theta, float)
+    nets = _unpack(theta, arch)
     sharing = BY_NAME[arch].sharing
     if sharing == "section_code":
-        eye = np.eye(3)
-        u = [_forward(nets[0], np.concatenate([g, np.broadcast_to(eye[i], (len(g), 3))], 1)) for i in range(3)]
-        return np.concatenate([u[i][:, :k] for i, k in enumerate(SECTION_OUTPUTS)], 1)
+        eye = xp.eye(3, dtype=g.dtype)
+        u = [_forward(nets[0], xp.concatenate([g, xp.broadcast_to(eye[i], (len(g), 3))], 1), xp.tanh)
+             for i in range(3)]
+        return xp.concatenate([u[i][:, :k] for i, k in enumerate(SECTION_OUTPUTS)], 1)
     if sharing == "per_section":
-        return np.concatenate([_forward(net, g) for net in nets], 1)
+        return xp.concatenate([_forward(net, g, xp.tanh) for net in nets], 1)
     assert sharing == "joint", f"{arch}: unknown sharing {sharing!r}"
-    return _forward(nets[0], g)
+    return _forward(nets[0], g, xp.tanh)

@@ -1,0 +1,186 @@
+# Does the architecture ranking depend on where the search starts (docs/policy.md, "Starting point")?
+# The benchmark's searches of rules/policy.smk again, unchanged but for their start (config
+# policy.sensitivity: zero weights at larger steps, Glorot-uniform weights), for the architectures each
+# start names; the benchmark's own start (policy.start) is its runs. Each start is read by the rule
+# docs/policy.md fixed before the first run. Results: results/sensitivity/{summary.json,starts.csv},
+# Fig. S2. Then what the landscape allows: CMA-ES on each of the first evaluation targets' six commands
+# directly, the policies' rewards against that optimum, the optimum regressed on the target features
+# per section, and each architecture fitted to it by least squares (results/landscape/).
+
+SENS = "results/sensitivity"
+SCFG = PCFG["sensitivity"]
+BENCH_START = f"{PCFG['start']['init']}-{PCFG['start']['sigma0']:g}"
+SENS_RUNS_OF = [
+    (start, arch, seed)
+    for start, s in SCFG.items()
+    for arch in s["archs"]
+    for seed in range(PBUDGET["seeds"][arch])
+]
+LAND = "results/landscape"
+LBUDGET = BUDGET["landscape"]
+
+
+wildcard_constraints:
+    start="|".join(s.replace(".", r"\.") for s in SCFG),
+
+
+use rule policy_search as sensitivity_search with:
+    input:
+        **SIMULATOR,
+        training=f"{POL}/targets_training.parquet",
+        selection=f"{POL}/targets_selection.parquet",
+        code=imports("policy_search"),
+    output:
+        run=f"{SENS}/{{start}}/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{SENS}/{{start}}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+    log:
+        "logs/sensitivity/search_{start}_{arch}_seed{seed}.log",
+    benchmark:
+        "benchmarks/sensitivity/search_{start}_{arch}_seed{seed}.tsv"
+    priority: 0
+    params:
+        start=lambda wc: {k: v for k, v in SCFG[wc.start].items() if k != "archs"},
+        snapshots=[],
+
+
+use rule policy_evaluate as sensitivity_evaluate with:
+    input:
+        **SIMULATOR,
+        run=f"{SENS}/{{start}}/runs/{{arch}}_seed{{seed}}.json",
+        evaluation=f"{POL}/targets_evaluation.parquet",
+        code=imports("policy_evaluate"),
+    output:
+        f"{SENS}/{{start}}/eval/{{arch}}_seed{{seed}}.parquet",
+    log:
+        "logs/sensitivity/evaluate_{start}_{arch}_seed{seed}.log",
+    priority: 0
+
+
+rule sensitivity_summary:
+    """Each start summarised as the benchmark is, read by the fixed rule, with the slope probe of every
+    selected policy and of the first candidates of every start."""
+    input:
+        benchmark_runs=POLICY_RUNS,
+        benchmark_evals=POLICY_EVALS,
+        fixed=f"{POL}/eval/fixed.parquet",
+        runs=[f"{SENS}/{s}/runs/{a}_seed{i}.json" for s, a, i in SENS_RUNS_OF],
+        evals=[f"{SENS}/{s}/eval/{a}_seed{i}.parquet" for s, a, i in SENS_RUNS_OF],
+        evaluation=f"{POL}/targets_evaluation.parquet",
+        workspace=f"{POL}/workspace.json",
+        code=imports("sensitivity_summary"),
+    output:
+        f"{SENS}/summary.json",
+    log:
+        "logs/sensitivity/summary.log",
+    conda:
+        "../envs/esnap.yaml"
+    params:
+        starts={BENCH_START: PCFG["start"], **SCFG},
+        tolerances=PCFG["tolerances_m"],
+        d_f=PCFG["reward"]["d_f_m"],
+        v_min=PCFG["reward"]["v_min_sim_mps"],
+        budget_evaluations=evaluations(
+            PBUDGET["generations"],
+            PBUDGET["popsize"],
+            PBUDGET["targets_per_candidate"],
+        ),
+        protocol=protocol_params("primitive"),
+        seed=config["seed"],
+    script:
+        "../workflow_scripts/sensitivity_summary.py"
+
+
+rule fig_sensitivity:
+    """Fig. S2: final held-out reward per architecture and start, and how tied the shared sections are."""
+    input:
+        summary=f"{SENS}/summary.json",
+        code=imports("fig_sensitivity"),
+    output:
+        pdf="results/figs/figS2_sensitivity.pdf",
+        png=report(
+            "results/figs/figS2_sensitivity.png",
+            caption=caption("figS2_sensitivity"),
+            category=category("figS2_sensitivity"),
+        ),
+    log:
+        "logs/fig_sensitivity.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/fig_sensitivity.py"
+
+
+rule table_sensitivity:
+    """Per start: rewards, the reading, the budget share to the centralised level, the slope probe."""
+    input:
+        summary=f"{SENS}/summary.json",
+        code=imports("sensitivity_table"),
+    output:
+        report(
+            f"{SENS}/starts.csv",
+            caption="../report/sensitivity_starts.rst",
+            category="Policy",
+        ),
+    log:
+        "logs/sensitivity/table.log",
+    conda:
+        "../envs/esnap.yaml"
+    script:
+        "../workflow_scripts/sensitivity_table.py"
+
+
+rule landscape_optimum:
+    """Per target, the best six commands CMA-ES finds on them directly (the policies' simulator,
+    reward and bounds), restarted from random points, in two repeats with their own seeds.
+    """
+    input:
+        **SIMULATOR,
+        evaluation=f"{POL}/targets_evaluation.parquet",
+        code=imports("landscape_optimum"),
+    output:
+        f"{LAND}/optimum.parquet",
+    log:
+        "logs/landscape/optimum.log",
+    benchmark:
+        "benchmarks/landscape/optimum.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: 2
+    params:
+        **SIM_PARAMS,
+        size=LBUDGET,
+        method=PCFG["landscape"],
+    script:
+        "../workflow_scripts/landscape_optimum.py"
+
+
+rule landscape_summary:
+    """What any policy could still gain, whether the sections need distinct slopes, and each
+    architecture's capacity apart from search (least squares on the optimum, scored by the reward).
+    """
+    input:
+        **SIMULATOR,
+        optimum=f"{LAND}/optimum.parquet",
+        evaluation=f"{POL}/targets_evaluation.parquet",
+        benchmark_evals=POLICY_EVALS,
+        fixed=f"{POL}/eval/fixed.parquet",
+        code=imports("landscape_summary"),
+    output:
+        summary=f"{LAND}/summary.json",
+        table=report(
+            f"{LAND}/architectures.csv",
+            caption="../report/landscape_architectures.rst",
+            category="Policy",
+        ),
+    log:
+        "logs/landscape/summary.log",
+    benchmark:
+        "benchmarks/landscape/summary.tsv"
+    conda:
+        "../envs/esnap.yaml"
+    threads: 1
+    params:
+        **SIM_PARAMS,
+        seed=config["seed"],
+    script:
+        "../workflow_scripts/landscape_summary.py"
