@@ -123,8 +123,31 @@ def test_ledger_rows_artifact_fed_by_and_doc(tmp_path):
     assert rows["a"]["fed_by"] == "servo_calibration 1/1"
     assert rows["b"]["explained_in"] == "docs/characterize.md" and rows["a"]["explained_in"] == ""
     md = ledger.markdown(list(rows.values()))
-    assert md.splitlines()[2].startswith("2 paper numbers, 1 reproduced within tolerance, 1 differ")
+    assert md.splitlines()[2].startswith("2 paper numbers, 1 reproduced within tolerance, 0 agree by construction")
     assert md.index("## III-A") < md.index("## III-B")
+
+
+def test_a_claim_the_rig_took_from_the_paper_agrees_by_construction_only_on_the_rig(tmp_path, monkeypatch):
+    claims, _, _ = _run(tmp_path)
+    monkeypatch.setattr(ledger, "by_construction", lambda stage, cid: "the rig's input" if cid in "ab" else None)
+    rows = {r["claim_id"]: r for r in ledger.ledger([claims], tmp_path)}
+    assert rows["a"]["status"] == "by construction" and rows["a"]["explained_in"] == "docs/twin.md"
+    assert rows["b"]["status"] == "differs"  # a difference stays one
+    assert ledger.count_line(list(rows.values())).startswith("2 paper numbers, 0 reproduced within tolerance, "
+                                                              "1 agree by construction")
+    rows = {r["claim_id"]: r for r in ledger.ledger([claims], tmp_path, simulated=False)}
+    assert rows["a"]["status"] == "agrees"  # a real rig's recordings: judged like any other
+
+
+def test_every_by_construction_claim_is_a_paper_claim_with_its_reason():
+    from embodied_snap.reference import paper_values
+
+    ref = paper_values()
+    built = {(st, cid): c["by_construction"] for st, cs in ref.items() if isinstance(cs, dict)
+             for cid, c in cs.items() if isinstance(c, dict) and "by_construction" in c}
+    assert built, "the simulated rig's operating point is a paper result: at least its claims are built in"
+    for (st, cid), why in built.items():
+        assert ref[st][cid].get("paper") is not None and len(why) > 20, (st, cid)
 
 
 def test_crate_lists_every_result_once_and_fails_when_one_changes(tmp_path):
