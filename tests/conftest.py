@@ -42,7 +42,8 @@ def synthetic_frames():
 
 @pytest.fixture(scope="session")
 def smoke_run(tmp_path_factory):
-    """One smoke-budget run of the whole DAG (`snakemake all robustness`) in a copy of the repository, shared
+    """One smoke-budget run of the whole DAG (`snakemake all robustness sensitivity landscape`) in a copy of
+    the repository, shared
     by every test module that needs a finished run (test_workflow, test_report): a second run would
     cost minutes. Modules that change files in it restore them."""
     from test_workflow import COPY, REPO, snakemake
@@ -53,8 +54,8 @@ def smoke_run(tmp_path_factory):
         (shutil.copytree if src.is_dir() else shutil.copy2)(
             src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
         )
-    snakemake(d, "all", "robustness")
-    # The crate comes after every product; robustness products made in the same run may finish
+    snakemake(d, "all", "robustness", "sensitivity", "landscape")
+    # The crate comes after every product; the later targets' products made in the same run may finish
     # after it, and the next `snakemake all` rewrites it to list them (the Snakefile's `crate`).
     snakemake(d, "all")
     return d

@@ -90,9 +90,13 @@ def test_report_opens_in_chromium_with_every_figure_and_table(wf):
     res = check_report(html, wf / "results/report.png", show="results/figs/fig1_system.png")
     assert res["problems"] == []
     figs = {f"results/figs/{p.name}" for p in (wf / "results/figures").glob("*.png")}
-    # the robustness figure joins the report once it exists (the crate waits on it: docs/report.md)
-    figs |= {f for f in ["results/figs/figS1_robustness.png"] if (wf / f).exists()}
+    # the later targets' figures and tables join the report once they exist (the crate waits on them:
+    # docs/report.md)
+    figs |= {f for f in ["results/figs/figS1_robustness.png", "results/figs/figS2_sensitivity.png"]
+             if (wf / f).exists()}
     tables = {f"results/tables/{p.name}" for p in (wf / "results/tables").glob("*.html")}
+    tables |= {f for f in ["results/sensitivity/starts.csv", "results/landscape/architectures.csv"]
+               if (wf / f).exists()}
     assert {"results/tables/table1_evidence.html", "results/tables/claims.html"} <= tables
     assert set(res["results"]) == figs | tables
     assert all(v.startswith(("image", "table")) for v in res["results"].values())

@@ -15,8 +15,10 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from embodied_snap.lineage.dag import rule_table
 
@@ -99,6 +101,28 @@ def test_robustness_variants_extend_the_benchmark(wf):
     assert longer["curve"][:g] == run["curve"] and len(longer["curve"]) == 2 * g
     claims = pd.read_csv(wf / "results/robustness/variants.csv")
     assert set(claims.variant) == set(s) and (claims.claim_id.str.endswith("ranking_reward_holds")).sum() == 4
+
+
+def test_starting_points_extend_the_benchmark_and_the_landscape_bounds_it(wf):
+    """The benchmark's start is the policy stage's runs; every configured start is read by the fixed
+    rule; the per-target optimum is at least as good as every policy on its targets (it is searched
+    on them), and both its repeats are kept."""
+    s = json.loads((wf / "results/sensitivity/summary.json").read_text())
+    bench = json.loads((wf / "results/policy/summary.json").read_text())
+    cfg = yaml.safe_load((wf / "config.yaml").read_text())["policy"]
+    assert list(s) == ["zero-0.1", *cfg["sensitivity"]]
+    assert s["zero-0.1"]["reward"] == bench["reward"]
+    for name, start in cfg["sensitivity"].items():
+        assert s[name]["archs"] == [a for a in s["zero-0.1"]["archs"] if a in start["archs"]]
+        assert s[name]["reproduced"] in (True, False)
+    starts = pd.read_csv(wf / "results/sensitivity/starts.csv")
+    assert (starts.claim_id.str.endswith(".reproduced")).sum() == len(s)
+    opt = pd.read_parquet(wf / "results/landscape/optimum.parquet")
+    assert {"reward_repeat0", "reward_repeat1"} <= set(opt.columns)
+    assert np.allclose(opt.reward, opt[["reward_repeat0", "reward_repeat1"]].max(axis=1), atol=1e-6)
+    table = pd.read_csv(wf / "results/landscape/architectures.csv")
+    assert set(table.arch) == set(bench["archs"]) | {"fixed"}
+    assert (table.optimum_reward >= table.searched_reward_mean).all()
 
 
 def test_nothing_to_do_after_a_run(wf):
