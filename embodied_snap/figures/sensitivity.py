@@ -13,19 +13,21 @@ from . import style
 from .benchmark import COLORS, NAMES
 
 
-def _title(name: str, x: dict) -> str:
+def _title(i: int, x: dict) -> str:
     st = x["start"]
-    return f"{'zero' if st['init'] == 'zero' else 'Glorot'} weights\n$\\sigma_0$ = {st['sigma0']:g}"
+    return (f"{'zero' if st['init'] == 'zero' else 'Glorot'} weights\n$\\sigma_0$ = {st['sigma0']:g}"
+            + ("\n(benchmark)" if i == 0 else ""))
 
 
 def plot_sensitivity(s: dict, pdf: str, png: str) -> None:
     style.setup()
     fig, axes = plt.subplots(2, 1, figsize=(style.TEXT_WIDTH_IN, 3.8), sharex=True)
-    fig.subplots_adjust(left=0.11, right=0.99, bottom=0.15, top=0.88, hspace=0.12)
+    fig.subplots_adjust(left=0.11, right=0.99, bottom=0.17, top=0.9, hspace=0.12)
     starts = list(s)
     archs = list(dict.fromkeys(a for x in s.values() for a in x["archs"]))
     w = 0.8 / len(archs)
     rng = np.random.default_rng(0)  # fixed jitter: the same summary draws the same figure
+    labelled = set()
     for i, name in enumerate(starts):
         x = s[name]
         for j, a in enumerate(archs):
@@ -35,7 +37,8 @@ def plot_sensitivity(s: dict, pdf: str, png: str) -> None:
             y = np.array([np.nan if e is None else e for e in per.values()], float)
             if len(y):
                 axes[0].plot(x0 + rng.uniform(-w / 4, w / 4, len(y)), y, "o", ms=2.8, color=c, alpha=0.8,
-                             label=NAMES.get(a, a) if a not in axes[0].get_legend_handles_labels()[1] else None)
+                             label=None if a in labelled else NAMES.get(a, a))
+                labelled.add(a)
                 axes[0].plot([x0 - w * 0.4, x0 + w * 0.4], [np.nanmean(y)] * 2, color=c, lw=1.4)
             cos = [p["cosine_mean"] for p in x["probe"].get(a, {}).values() if p["cosine_mean"] is not None]
             axes[1].plot(x0 + rng.uniform(-w / 4, w / 4, len(cos)), cos, "o", ms=2.8, color=c, alpha=0.8)
@@ -52,7 +55,7 @@ def plot_sensitivity(s: dict, pdf: str, png: str) -> None:
     axes[1].set_ylabel("Slope cosine\n(sections' preloads)")
     axes[1].set_ylim(-1.05, 1.05)
     axes[1].axhline(0, color="0.85", lw=0.6)
-    axes[1].set_xticks(range(len(starts)), [_title(n, s[n]) for n in starts])
+    axes[1].set_xticks(range(len(starts)), [_title(i, s[n]) for i, n in enumerate(starts)])
     axes[1].set_xlim(-0.5, len(starts) - 0.5)
     lo, hi = axes[0].get_ylim()
     axes[0].set_ylim(lo, hi + 0.25 * (hi - lo))  # room for the p-values
