@@ -99,7 +99,8 @@ rule fig_sensitivity:
         pdf="results/figs/figS2_sensitivity.pdf",
         png=report(
             "results/figs/figS2_sensitivity.png",
-            caption=caption("figS2_sensitivity"),
+            # a static caption: the ledger writes captions only for the paper's figures
+            caption="../report/figS2_sensitivity.rst",
             category=category("figS2_sensitivity"),
         ),
     log:
@@ -116,10 +117,11 @@ rule table_sensitivity:
         summary=f"{SENS}/summary.json",
         code=imports("sensitivity_table"),
     output:
-        report(
-            f"{SENS}/starts.csv",
+        csv=f"{SENS}/starts.csv",
+        html=report(
+            f"{SENS}/starts.html",
             caption="../report/sensitivity_starts.rst",
-            category="Policy",
+            category="Starting point",
         ),
     log:
         "logs/sensitivity/table.log",
@@ -167,10 +169,11 @@ rule landscape_summary:
         code=imports("landscape_summary"),
     output:
         summary=f"{LAND}/summary.json",
-        table=report(
-            f"{LAND}/architectures.csv",
+        table=f"{LAND}/architectures.csv",
+        html=report(
+            f"{LAND}/architectures.html",
             caption="../report/landscape_architectures.rst",
-            category="Policy",
+            category="Landscape",
         ),
     log:
         "logs/landscape/summary.log",

@@ -95,7 +95,7 @@ def test_report_opens_in_chromium_with_every_figure_and_table(wf):
     figs |= {f for f in ["results/figs/figS1_robustness.png", "results/figs/figS2_sensitivity.png"]
              if (wf / f).exists()}
     tables = {f"results/tables/{p.name}" for p in (wf / "results/tables").glob("*.html")}
-    tables |= {f for f in ["results/sensitivity/starts.csv", "results/landscape/architectures.csv"]
+    tables |= {f for f in ["results/sensitivity/starts.html", "results/landscape/architectures.html"]
                if (wf / f).exists()}
     assert {"results/tables/table1_evidence.html", "results/tables/claims.html"} <= tables
     assert set(res["results"]) == figs | tables

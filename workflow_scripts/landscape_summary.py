@@ -13,6 +13,7 @@ import torch
 
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
+from embodied_snap.paper import html
 from embodied_snap.policy import landscape, search, simulate
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -30,3 +31,6 @@ with tracked(snakemake):
     with open(snakemake.output.summary, "w") as f:
         json.dump(s, f, indent=1)
     table.to_csv(snakemake.output.table, index=False, lineterminator="\n")
+    with open(snakemake.output.html, "w") as f:
+        f.write(html.table("What the landscape allows", "docs/policy.md, Landscape.", list(table.columns),
+                           table.round(4).to_dict("records")))
