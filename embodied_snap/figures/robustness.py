@@ -18,6 +18,32 @@ def _title(v: str, x: dict) -> str:
     return TITLES.get(v, f"{v.capitalize()} budget\n({x['generations']} gen.)")
 
 
+def seed_dots(ax, x0: float, y, w: float, color, rng, label=None) -> None:
+    """One group's per-seed values as jittered dots (rng: the figure's fixed jitter) and their mean
+    as a bar."""
+    ax.plot(x0 + rng.uniform(-w / 4, w / 4, len(y)), y, "o", ms=2.8, color=color, alpha=0.8, label=label)
+    if np.isfinite(y).any():
+        ax.plot([x0 - w * 0.4, x0 + w * 0.4], [np.nanmean(y)] * 2, color=color, lw=1.4)
+
+
+def p_text(p) -> str:
+    return f"p = {p:.3g}" if p is not None else "p n/a"
+
+
+def finish(fig, axes, ticks: list[str], ncol: int, room: float, pdf: str, png: str) -> None:
+    """Two panels over groups: the groups' names under the lower one, room above the upper one for
+    the p-values (a share of its range), one legend, panel labels a and b; saved."""
+    axes[1].set_xticks(range(len(ticks)), ticks)
+    axes[1].set_xlim(-0.5, len(ticks) - 0.5)
+    lo, hi = axes[0].get_ylim()
+    axes[0].set_ylim(lo, hi + room * (hi - lo))
+    h, lab = axes[0].get_legend_handles_labels()
+    fig.legend(h, lab, loc="upper center", ncol=ncol, handlelength=1, frameon=False, fontsize=7)
+    style.panel_label(axes[0], "a")
+    style.panel_label(axes[1], "b")
+    style.save(fig, pdf, png)
+
+
 def plot_robustness(s: dict, pdf: str, png: str) -> None:
     style.setup()
     fig, axes = plt.subplots(2, 1, figsize=(style.TEXT_WIDTH_IN, 3.6), sharex=True)
@@ -32,26 +58,14 @@ def plot_robustness(s: dict, pdf: str, png: str) -> None:
             for j, a in enumerate(archs):
                 per = s[v][key].get(a, {}).get("per_seed", {})
                 y = np.array([np.nan if e is None else e for e in per.values()], float)
-                x0 = i - 0.4 + w * (j + 0.5)
-                ax.plot(x0 + rng.uniform(-w / 4, w / 4, len(y)), y, "o", ms=2.8, color=COLORS.get(a), alpha=0.8,
-                        label=NAMES.get(a, a) if i == 0 else None)
-                if np.isfinite(y).any():
-                    ax.plot([x0 - w * 0.4, x0 + w * 0.4], [np.nanmean(y)] * 2, color=COLORS.get(a), lw=1.4)
+                seed_dots(ax, i - 0.4 + w * (j + 0.5), y, w, COLORS.get(a), rng, NAMES.get(a, a) if i == 0 else None)
         ax.set_ylabel(label)
         for i in range(1, len(variants)):
             ax.axvline(i - 0.5, color="0.85", lw=0.6)
     for i, v in enumerate(variants):
         p = s[v]["reward_tests"].get("centralised", {}).get("p")
         holds = "ranking holds" if s[v]["ranking_reward_holds"] else "ranking differs"
-        txt = (f"p = {p:.3g}" if p is not None else "p n/a") + (f"; {holds}" if i else "")
+        txt = p_text(p) + (f"; {holds}" if i else "")
         axes[0].text(i, 0.98, txt, transform=axes[0].get_xaxis_transform(), ha="center", va="top", fontsize=6.5)
-    axes[1].set_xticks(range(len(variants)), [_title(v, s[v]) for v in variants])
-    axes[1].set_xlim(-0.5, len(variants) - 0.5)
     axes[1].set_ylim(0, 1)
-    lo, hi = axes[0].get_ylim()
-    axes[0].set_ylim(lo, hi + 0.15 * (hi - lo))  # room for the p-values
-    h, lab = axes[0].get_legend_handles_labels()
-    fig.legend(h, lab, loc="upper center", ncol=len(archs), handlelength=1, frameon=False, fontsize=7)
-    style.panel_label(axes[0], "a")
-    style.panel_label(axes[1], "b")
-    style.save(fig, pdf, png)
+    finish(fig, axes, [_title(v, s[v]) for v in variants], len(archs), 0.15, pdf, png)

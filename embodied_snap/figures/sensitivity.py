@@ -11,6 +11,7 @@ import numpy as np
 
 from . import style
 from .benchmark import COLORS, NAMES
+from .robustness import finish, p_text, seed_dots
 
 
 def _title(i: int, x: dict) -> str:
@@ -36,17 +37,15 @@ def plot_sensitivity(s: dict, pdf: str, png: str) -> None:
             per = x["reward"].get(a, {}).get("per_seed", {})
             y = np.array([np.nan if e is None else e for e in per.values()], float)
             if len(y):
-                axes[0].plot(x0 + rng.uniform(-w / 4, w / 4, len(y)), y, "o", ms=2.8, color=c, alpha=0.8,
-                             label=None if a in labelled else NAMES.get(a, a))
+                seed_dots(axes[0], x0, y, w, c, rng, None if a in labelled else NAMES.get(a, a))
                 labelled.add(a)
-                axes[0].plot([x0 - w * 0.4, x0 + w * 0.4], [np.nanmean(y)] * 2, color=c, lw=1.4)
             cos = [p["cosine_mean"] for p in x["probe"].get(a, {}).values() if p["cosine_mean"] is not None]
             axes[1].plot(x0 + rng.uniform(-w / 4, w / 4, len(cos)), cos, "o", ms=2.8, color=c, alpha=0.8)
             if x["start_probe"].get(a) is not None:
                 axes[1].plot(x0, x["start_probe"][a], "o", ms=5, mfc="none", mec=c, mew=0.9)
         p = x["reward_tests"].get("centralised", {}).get("p")
         verdict = {True: "reproduced", False: "not reproduced", None: "n/a"}[x["reproduced"]]
-        axes[0].text(i, 0.98, (f"p = {p:.3g}" if p is not None else "p n/a") + f"\n{verdict}",
+        axes[0].text(i, 0.98, p_text(p) + f"\n{verdict}",
                      transform=axes[0].get_xaxis_transform(), ha="center", va="top", fontsize=6.5)
     for ax in axes:
         for i in range(1, len(starts)):
@@ -55,12 +54,4 @@ def plot_sensitivity(s: dict, pdf: str, png: str) -> None:
     axes[1].set_ylabel("Slope cosine\n(sections' preloads)")
     axes[1].set_ylim(-1.05, 1.05)
     axes[1].axhline(0, color="0.85", lw=0.6)
-    axes[1].set_xticks(range(len(starts)), [_title(i, s[n]) for i, n in enumerate(starts)])
-    axes[1].set_xlim(-0.5, len(starts) - 0.5)
-    lo, hi = axes[0].get_ylim()
-    axes[0].set_ylim(lo, hi + 0.25 * (hi - lo))  # room for the p-values
-    h, lab = axes[0].get_legend_handles_labels()
-    fig.legend(h, lab, loc="upper center", ncol=len(archs), handlelength=1, frameon=False, fontsize=7)
-    style.panel_label(axes[0], "a")
-    style.panel_label(axes[1], "b")
-    style.save(fig, pdf, png)
+    finish(fig, axes, [_title(i, s[n]) for i, n in enumerate(starts)], len(archs), 0.25, pdf, png)

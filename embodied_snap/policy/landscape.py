@@ -34,6 +34,7 @@ def optimum(sim, T, ranges: dict, popsize: int, sigma0: float, generations: int,
     n = len(T)
     best_u, best_r = np.zeros((n, 6)), np.full(n, -np.inf)
     rng = np.random.default_rng(seed)
+    idx = np.repeat(np.arange(n), popsize)  # each target's candidates side by side in one batch
     bar = tqdm(total=restarts * generations, desc=f"optimum seed {seed}", disable=not progress, mininterval=5)
     for _ in range(restarts):
         es = [cma.CMAEvolutionStrategy(rng.uniform(-1, 1, 6), sigma0,
@@ -41,7 +42,6 @@ def optimum(sim, T, ranges: dict, popsize: int, sigma0: float, generations: int,
                                         "seed": int(rng.integers(1, 2**31 - 1))}) for _ in range(n)]
         for _ in range(generations):
             X = np.array([e.ask() for e in es])  # (n, popsize, 6)
-            idx = np.repeat(np.arange(n), popsize)
             act = decode(X.reshape(-1, 6), ranges)
             R = sim.run(act, T.p[idx], T.normal[idx])["reward"].reshape(n, popsize)
             for i, e in enumerate(es):
@@ -77,16 +77,12 @@ def section_slopes(u: np.ndarray, g: np.ndarray) -> dict:
     other commands' R^2 (S1's aim dphi and timing tau, S3's slack)."""
     z = standardise(g)
     n = len(z)
-    out = {"sections": {}, "commands": {}}
-    slopes = []
-    for i in (1, 2, 3):
-        fit = sm.OLS(u[:, ACTIONS.index(f"rho{i}")], sm.add_constant(z)).fit()
-        slopes.append(fit.params[1:])
-        out["sections"][f"s{i}"] = dict(slope=fit.params[1:].tolist(), r2=float(fit.rsquared),
-                                        p_slope=float(fit.f_pvalue))
-    for a in ACTIONS:
-        fit = sm.OLS(u[:, ACTIONS.index(a)], sm.add_constant(z)).fit()
-        out["commands"][a] = dict(slope=fit.params[1:].tolist(), r2=float(fit.rsquared), p=float(fit.f_pvalue))
+    fits = {a: sm.OLS(u[:, j], sm.add_constant(z)).fit() for j, a in enumerate(ACTIONS)}
+    out = {"commands": {a: dict(slope=f.params[1:].tolist(), r2=float(f.rsquared), p=float(f.f_pvalue))
+                        for a, f in fits.items()}}
+    out["sections"] = {f"s{i}": dict(slope=c["slope"], r2=c["r2"], p_slope=c["p"])
+                       for i, c in ((i, out["commands"][f"rho{i}"]) for i in (1, 2, 3))}
+    slopes = [fits[f"rho{i}"].params[1:] for i in (1, 2, 3)]
     cos = lambda a, b: float(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))  # noqa: E731
     out["cosine"] = {f"s{i + 1}s{j + 1}": cos(slopes[i], slopes[j]) for i, j in ((0, 1), (0, 2), (1, 2))}
     y = np.concatenate([u[:, ACTIONS.index(f"rho{i}")] for i in (1, 2, 3)])

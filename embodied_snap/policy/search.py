@@ -50,9 +50,13 @@ def feature_stats(train: Targets) -> dict:
     return {"mu": train.g.mean(0).tolist(), "sd": train.g.std(0).tolist()}
 
 
+def normalised(g: np.ndarray, norm: dict) -> np.ndarray:
+    """Raw target features g (N, 3) in a run's units: its training targets' statistics (`norm`)."""
+    return (g - np.asarray(norm["mu"])) / np.asarray(norm["sd"])
+
+
 def policy_actions(arch: str, theta, T: Targets, norm: dict, ranges: dict) -> dict:
-    g = (T.g - np.asarray(norm["mu"])) / np.asarray(norm["sd"])
-    return decode(networks.outputs(arch, theta, g), ranges)
+    return decode(networks.outputs(arch, theta, normalised(T.g, norm)), ranges)
 
 
 def score(sim, jobs: list[tuple[dict, Targets]]) -> np.ndarray:

@@ -15,6 +15,7 @@ from ..reference import fmt
 from .analysis import MATCHED
 from .networks import ACTIONS, initial, outputs
 from .robustness import variant
+from .search import normalised
 
 ALPHA = 0.05  # the reading's significance level (docs/policy.md), fixed before the first run
 PRELOADS = tuple(ACTIONS.index(f"rho{i}") for i in (1, 2, 3))  # the sections' preload outputs
@@ -80,14 +81,14 @@ def summarize_starts(starts: dict, runs_of: dict, evals_of: dict, fixed, feature
         s = variant(runs, evals_of[name], fixed, tolerances, d_f, v_min, budget_evaluations, timing_s)
         s["start"] = {k: v for k, v in start.items() if k != "archs"}
         s["reproduced"] = reproduced(s)
-        s["probe"], s["start_probe"] = {}, {}
+        s["probe"], s["start_probe"], first = {}, {}, {}
         for r in runs:
-            g = (features - np.asarray(r["norm"]["mu"])) / np.asarray(r["norm"]["sd"])
+            g = normalised(features, r["norm"])
+            first.setdefault(r["arch"], g)
             s["probe"].setdefault(r["arch"], {})[str(r["seed"])] = probe(r["arch"], r["theta"], g)
         for a in s["archs"]:
-            r = next(r for r in runs if r["arch"] == a)
-            g = (features - np.asarray(r["norm"]["mu"])) / np.asarray(r["norm"]["sd"])
-            s["start_probe"][a] = start_probe(a, s["start"], g, s["seeds"][a], draws, np.random.default_rng(seed))
+            rng = np.random.default_rng(seed)
+            s["start_probe"][a] = start_probe(a, s["start"], first[a], s["seeds"][a], draws, rng)
         out[name] = s
     return out
 
