@@ -23,6 +23,16 @@ def decode(u: np.ndarray, ranges: dict) -> dict[str, np.ndarray]:
     return out
 
 
+def effective_u(cmds: dict, ranges: dict) -> np.ndarray:
+    """The inverse of Eq. 7 on applied commands {action: (N,)}: u (N, 6) in ACTIONS order."""
+    cols = []
+    for a in ACTIONS:
+        lo, hi = ranges[a]
+        f = np.clip((np.asarray(cmds[a], float) - lo) / (hi - lo), 0, 1)
+        cols.append(2 * (np.sqrt(f) if a == "s3" else f) - 1)
+    return np.stack(cols, 1)
+
+
 def workspace_clamp(act: dict, bearing_deg: np.ndarray, ws: dict, frac: float) -> dict:
     """rho_i <- min(rho_i, frac * rho_i_max(bearing)) from the recorded directional workspace: the
     largest recorded preload per bearing bin (ws: bin_lo_deg, bin_width_deg, rho_max (bins, 3))."""

@@ -4,7 +4,7 @@ and what it says about the architectures apart from their search.
 - `optimum`: per target, CMA-ES (pycma) directly on the six dimensionless commands u of Eq. 7
   (bounds [-1, 1]: the policies' box), the same simulator and reward, restarted from uniform random
   points; every target's candidates of one generation are one batch of rollouts.
-- `effective_u`: the u that decodes to the commands the simulator applied (after the workspace clamp
+- `actions.effective_u` (beside Eq. 7, which it inverts): the u that decodes to the commands the simulator applied (after the workspace clamp
   and the timing projection), so that a command above its clamp, where the reward is flat, is read
   at the clamp.
 - `section_slopes`: the optimal preloads regressed on the standardised target features (d, e, r),
@@ -21,7 +21,7 @@ import pandas as pd
 import statsmodels.api as sm
 from tqdm import tqdm
 
-from .actions import decode
+from .actions import decode, effective_u
 from .architectures import BY_NAME
 from .networks import ACTIONS, initial, n_params, outputs
 
@@ -54,16 +54,6 @@ def optimum(sim, T, ranges: dict, popsize: int, sigma0: float, generations: int,
         bar.set_postfix(mean=f"{best_r.mean():.3f}")
     bar.close()
     return best_u, best_r
-
-
-def effective_u(cmds: dict, ranges: dict) -> np.ndarray:
-    """The inverse of Eq. 7 on applied commands {action: (N,)}: u (N, 6) in ACTIONS order."""
-    cols = []
-    for a in ACTIONS:
-        lo, hi = ranges[a]
-        f = np.clip((np.asarray(cmds[a], float) - lo) / (hi - lo), 0, 1)
-        cols.append(2 * (np.sqrt(f) if a == "s3" else f) - 1)
-    return np.stack(cols, 1)
 
 
 def standardise(g: np.ndarray) -> np.ndarray:
