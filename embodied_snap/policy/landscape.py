@@ -4,9 +4,9 @@ and what it says about the architectures apart from their search.
 - `optimum`: per target, CMA-ES (pycma) directly on the six dimensionless commands u of Eq. 7
   (bounds [-1, 1]: the policies' box), the same simulator and reward, restarted from uniform random
   points; every target's candidates of one generation are one batch of rollouts.
-- `actions.effective_u` (beside Eq. 7, which it inverts): the u that decodes to the commands the simulator applied (after the workspace clamp
-  and the timing projection), so that a command above its clamp, where the reward is flat, is read
-  at the clamp.
+- `actions.effective_u` (beside Eq. 7, which it inverts): the u that decodes to the commands the
+  simulator applied (after the workspace clamp and the timing projection), so that a command above
+  its clamp, where the reward is flat, is read at the clamp.
 - `section_slopes`: the optimal preloads regressed on the standardised target features (d, e, r),
   one slope vector per section, and the F-test of one common slope against three (statsmodels).
 - `fit_architecture`: an architecture fitted by least squares to the optimal u (torch L-BFGS), its policy
