@@ -36,20 +36,23 @@ def stages(root: Path = ROOT) -> dict[str, str]:
 
 
 def jobs(log: str | Path) -> list[dict]:
-    """One dict per finished job: rule, wildcards, input and output (file lists), priority, start
-    and end (s from the first start)."""
+    """One dict per finished job: rule, wildcards, input and output (file lists), priority, threads,
+    benchmark (its file, or None), start and end (s from the first start)."""
     ts, block, started, out = None, None, {}, []
     for line in Path(log).read_text().splitlines():
         if m := STAMP.match(line):
             ts = dt.datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y")
         elif m := START.match(line):
-            block = dict(rule=m.group(1), wildcards="", input=[], output=[], priority=0, start=ts)
+            block = dict(rule=m.group(1), wildcards="", input=[], output=[], priority=0, threads=1, benchmark=None,
+                         start=ts)
         elif block and (m := re.match(r"^\s+wildcards: (.*)$", line)):
             block["wildcards"] = m.group(1)
         elif block and (m := re.match(r"^\s+(input|output): (.*)$", line)):
             block[m.group(1)] = m.group(2).split(", ")
-        elif block and (m := re.match(r"^\s+priority: (\d+)$", line)):
-            block["priority"] = int(m.group(1))
+        elif block and (m := re.match(r"^\s+(priority|threads): (\d+)$", line)):
+            block[m.group(1)] = int(m.group(2))
+        elif block and (m := re.match(r"^\s+benchmark: (.*)$", line)):
+            block["benchmark"] = m.group(1)
         elif block and (m := re.match(r"^\s+jobid: (\d+)$", line)):
             started[int(m.group(1))] = block
         elif (m := re.match(r"^Finished jobid: (\d+)", line)) and int(m.group(1)) in started:
