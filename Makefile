@@ -37,7 +37,7 @@ paper: install
 test: install
 	$(VENV)/bin/pytest -q
 
-# A one-node SLURM cluster on this machine (root; installs slurm and munge from Debian if missing):
+# A three-node SLURM cluster on this machine (network namespaces; root; installs slurm and munge from Debian if missing):
 # the smoke DAG through profiles/slurm, compared with a local run (docs/cluster.md).
 cluster-test: install
 	VENV=$(VENV) bash cluster/cluster-test.sh

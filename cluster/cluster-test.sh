@@ -1,21 +1,26 @@
 #!/usr/bin/env bash
-# `make cluster-test`: a one-node SLURM cluster on this machine, the smoke DAG through
+# `make cluster-test`: a three-node SLURM cluster on this machine, the smoke DAG through
 # profiles/slurm in a fresh clone, and the proof that it gives what a local run gives
 # (docs/cluster.md, "The local cluster").
 #
 #  1. installs slurmctld, slurmd, slurm-client and munge from Debian if missing (needs root);
-#  2. writes a one-node slurm.conf (proctrack/linuxproc, task/none, no accounting; the node's CPUs
-#     and memory as `slurmd -C` reads them) and a munge key into a scratch folder;
-#  3. starts munged, slurmctld and slurmd (no systemd) and stops them by pid on exit, whatever
-#     happens (trap);
+#  2. makes NODES (3) nodes: each a network namespace with its own address on a private bridge
+#     (ESNAP_NET.11, .12, ...; the controller at ESNAP_NET.1) and, for its slurmd, its own hostname
+#     (a UTS namespace), so that jobs land on different nodes that share this file system; writes
+#     their slurm.conf (proctrack/linuxproc, task/none, no accounting; each node this machine's CPUs
+#     and an equal share of its memory) and a munge key into a scratch folder;
+#  3. starts munged, slurmctld and a slurmd per node (no systemd); on exit, whatever happens (trap),
+#     stops them by pid, removes the namespaces and the bridge, and fails if any of them is left;
 #  4. clones the repository's HEAD, runs `snakemake --profile profiles/slurm --config budget=smoke`,
 #     cancels one running job with scancel, checks that it left no provenance record, reruns
 #     (--rerun-incomplete, in the profile) and checks that the job ran again and recorded its host;
+#     checks that the provenance records name every node, and only the nodes, as their host;
 #  5. runs the same DAG locally (`--cores 2`) in a second clone and compares every claims table:
 #     they must be identical, byte for byte.
 # Prints the wall time and the number of jobs submitted to SLURM. Exit status 0 only when all holds.
 #
-# Environment: VENV (default .venv, with `.[cluster]` installed), KEEP=1 keeps the scratch folder.
+# Environment: VENV (default .venv, with `.[cluster]` installed), KEEP=1 keeps the scratch folder,
+# NODES (default 3), ESNAP_NET (default 10.77.0: the bridge's /24, which must be free here).
 set -euo pipefail
 
 REPO=$(git rev-parse --show-toplevel)
@@ -23,6 +28,11 @@ VENV=$(cd "$REPO" && realpath "${VENV:-.venv}")
 START=$SECONDS
 NICE=(nice -n 5)
 PKGS=(slurmctld slurmd slurm-client munge)
+NODES=${NODES:-3}
+NET=${ESNAP_NET:-10.77.0}
+BRIDGE=esnapbr0
+NODE_NAMES=()
+for i in $(seq "$NODES"); do NODE_NAMES+=("esnap-n$i"); done
 CLAIMS=(characterize dynamics policy ablation)
 
 say() { echo "cluster-test: $*"; }
@@ -63,15 +73,36 @@ W=$(mktemp -d /tmp/esnap-cluster.XXXXXX)
 chmod 700 "$W"
 mkdir -p "$W/state" "$W/spool"
 PIDS=()
+stop() {  # a daemon by its pid file: TERM, then up to 10 s for it to exit, then KILL
+    local pid
+    [ -s "$1" ] || return 0
+    pid=$(cat "$1")
+    kill "$pid" 2>/dev/null || return 0
+    for _ in $(seq 100); do kill -0 "$pid" 2>/dev/null || return 0; sleep 0.1; done
+    kill -9 "$pid" 2>/dev/null || true
+}
 cleanup() {
-    local rc=$?
-    for f in slurmd slurmctld munged; do
-        if [ -s "$W/$f.pid" ]; then
-            kill "$(cat "$W/$f.pid")" 2>/dev/null || true
-        fi
-    done
+    local rc=$? left=() f n
+    for f in "$W"/slurmd.*.pid "$W/slurmctld.pid" "$W/munged.pid"; do stop "$f"; done
     for pid in "${PIDS[@]}"; do kill "$pid" 2>/dev/null || true; done
+    # A namespace goes once its last process has: the daemons are stopped first.
+    for n in "${NODE_NAMES[@]}"; do ip netns del "$n" 2>/dev/null || true; done
+    ip link del "$BRIDGE" 2>/dev/null || true
     [ "$(readlink /etc/slurm/slurm.conf 2>/dev/null)" = "$W/slurm.conf" ] && rm -f /etc/slurm/slurm.conf
+    # Nothing this test made may outlive it: daemons, namespaces, the bridge and its links.
+    for f in "$W"/slurmd.*.pid "$W/slurmctld.pid" "$W/munged.pid"; do
+        if [ -s "$f" ] && kill -0 "$(cat "$f")" 2>/dev/null; then left+=("$(basename "$f" .pid)"); fi
+    done
+    for n in "${NODE_NAMES[@]}"; do
+        if ip netns list | grep -qw "$n"; then left+=("namespace $n"); fi
+    done
+    for n in $(ip -o link show | grep -o 'esnap[a-z0-9]*' | sort -u); do left+=("link $n"); done
+    if [ ${#left[@]} -gt 0 ]; then
+        echo "cluster-test: error: left behind: ${left[*]}" >&2
+        rc=1
+    else
+        say "cleaned up: munged, slurmctld and ${#NODE_NAMES[@]} slurmd stopped, namespaces and bridge removed"
+    fi
     if [ "${KEEP:-0}" = 1 ] || [ $rc != 0 ]; then say "scratch folder kept: $W"; else rm -rf "$W"; fi
     exit $rc
 }
@@ -80,12 +111,31 @@ trap 'exit 130' INT TERM
 
 HOST=$(hostname -s)
 mungekey --create --keyfile="$W/munge.key" --force
-# The node as slurmd sees it (CPUs, sockets, cores, threads, memory), minus its uptime.
-NODE=$(slurmd -C | sed -n 's/^\(NodeName=.*\)$/\1/p' | head -1)
-[ -n "$NODE" ] || die "slurmd -C gave no NodeName line"
+# Each node: this machine's CPUs (a job asking for 2 threads must fit on one) and an equal share of
+# its memory. The nodes share the real cores, so the run is no faster than one node: it shows where
+# jobs land, not speed.
+CPUS=$(slurmd -C | sed -n 's/^NodeName=.* CPUs=\([0-9]*\) .*/\1/p' | head -1)
+MEM=$(slurmd -C | sed -n 's/^NodeName=.* RealMemory=\([0-9]*\).*/\1/p' | head -1)
+[ -n "$CPUS" ] && [ -n "$MEM" ] || die "slurmd -C gave no CPUs and RealMemory"
+if ip link show "$BRIDGE" > /dev/null 2>&1; then die "a bridge $BRIDGE exists (another cluster test?)"; fi
+if ip -4 -o addr | grep -q " $NET\."; then die "$NET.0/24 is in use here: set ESNAP_NET to a free /24"; fi
+ip link add "$BRIDGE" type bridge
+ip addr add "$NET.1/24" dev "$BRIDGE"
+ip link set "$BRIDGE" up
+NODE_LINES=""
+for i in $(seq "$NODES"); do
+    n=${NODE_NAMES[$((i - 1))]}
+    ip netns add "$n"
+    ip link add "esnapv$i" type veth peer name eth0 netns "$n"
+    ip link set "esnapv$i" master "$BRIDGE" up
+    ip -n "$n" addr add "$NET.$((10 + i))/24" dev eth0
+    ip -n "$n" link set eth0 up
+    ip -n "$n" link set lo up
+    NODE_LINES+="NodeName=$n NodeAddr=$NET.$((10 + i))"$'\n'
+done
 cat > "$W/slurm.conf" <<EOF
 ClusterName=esnaptest
-SlurmctldHost=$HOST(127.0.0.1)
+SlurmctldHost=$HOST($NET.1)
 AuthType=auth/munge
 CredType=cred/munge
 AuthInfo=socket=$W/munge.socket
@@ -94,11 +144,11 @@ SlurmdUser=root
 SlurmctldPort=${SLURMCTLD_PORT:-6817}
 SlurmdPort=${SLURMD_PORT:-6818}
 StateSaveLocation=$W/state
-SlurmdSpoolDir=$W/spool
+SlurmdSpoolDir=$W/spool/%n
 SlurmctldPidFile=$W/slurmctld.pid
-SlurmdPidFile=$W/slurmd.pid
+SlurmdPidFile=$W/slurmd.%n.pid
 SlurmctldLogFile=$W/slurmctld.log
-SlurmdLogFile=$W/slurmd.log
+SlurmdLogFile=$W/slurmd.%n.log
 # No cgroups in a container: processes tracked by parent pid, no task binding.
 ProctrackType=proctrack/linuxproc
 TaskPlugin=task/none
@@ -113,8 +163,9 @@ ReturnToService=2
 SchedulerType=sched/backfill
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU_Memory
-$NODE NodeAddr=127.0.0.1 State=UNKNOWN
-PartitionName=main Nodes=ALL Default=YES MaxTime=INFINITE State=UP
+NodeName=DEFAULT CPUs=$CPUS RealMemory=$((MEM / NODES)) State=UNKNOWN
+# LLN: each job to the least loaded node, so that every node gets work even when few jobs run.
+${NODE_LINES}PartitionName=main Nodes=ALL Default=YES MaxTime=INFINITE State=UP LLN=YES
 EOF
 # At the default path: the job-step plugin starts each job's srun without SLURM_* variables, so
 # SLURM_CONF would not reach it. A slurm.conf that is not ours is never touched.
@@ -132,14 +183,19 @@ export SLURM_CONF="$ETC"
 munged --force --socket="$W/munge.socket" --key-file="$W/munge.key" --pid-file="$W/munged.pid" \
     --log-file="$W/munged.log" --seed-file="$W/munged.seed"
 slurmctld -f "$SLURM_CONF"
-slurmd -f "$SLURM_CONF"
+# Each slurmd in its node's network namespace (nsenter: `ip netns exec` would remount /sys and hide
+# the cgroup file system slurmd reads) and in its own UTS namespace named as the node, so the jobs
+# it starts see that hostname and their provenance records name the node.
+for n in "${NODE_NAMES[@]}"; do
+    nsenter --net="/run/netns/$n" unshare --uts sh -c "hostname $n && exec slurmd -f $SLURM_CONF"
+done
 for i in $(seq 60); do
-    state=$(sinfo -h -o %t 2>/dev/null || true)
-    [ "$state" = idle ] && break
-    [ "$i" = 60 ] && die "the node did not come up (sinfo: '$state'; logs in $W)"
+    idle=$(sinfo -h -N -t idle -o %N 2>/dev/null | sort -u | wc -l)
+    [ "$idle" = "$NODES" ] && break
+    [ "$i" = 60 ] && die "$idle of $NODES nodes came up (sinfo -N: $(sinfo -h -N 2>&1 | xargs); logs in $W)"
     sleep 1
 done
-say "one-node cluster up: $NODE"
+say "$NODES-node cluster up: ${NODE_NAMES[*]} on $NET.0/24, $CPUS CPUs and $((MEM / NODES)) MB each"
 
 # --- 4. the smoke DAG on SLURM, with one job cancelled ------------------------------------------
 export PATH="$VENV/bin:$PATH"
@@ -148,7 +204,7 @@ clone() {  # a fresh clone of HEAD whose own package is the one imported (PYTHON
     git -C "$1" checkout -q "$(git -C "$REPO" rev-parse HEAD)"
 }
 clone "$W/slurm"
-SMK=(snakemake --profile profiles/slurm --config budget=smoke --jobs 4
+SMK=(snakemake --profile profiles/slurm --config budget=smoke --jobs $((CPUS * NODES))
      --slurm-init-seconds-before-status-checks 5)
 cd "$W/slurm"
 export PYTHONPATH="$W/slurm"
@@ -176,8 +232,18 @@ say "cancelled job left no record; rerunning"
 "${NICE[@]}" "${SMK[@]}" > "$W/slurm-run2.log" 2>&1 || die "the rerun failed (log: $W/slurm-run2.log)"
 grep -q "^rule $CANCELLED:" "$W/slurm-run2.log" ||
     grep -q "rule $CANCELLED\b" "$W/slurm-run2.log" || die "the rerun did not run $CANCELLED again"
-grep -q "\"host\": \"$(hostname)\"" "results/provenance/$CANCELLED/_.json" ||
-    die "the rerun's record of $CANCELLED names no host"
+host_of() { "$VENV/bin/python" -c 'import json, sys; print(json.load(open(sys.argv[1]))["host"])' "$1"; }
+[[ " ${NODE_NAMES[*]} " == *" $(host_of "results/provenance/$CANCELLED/_.json") "* ]] ||
+    die "the rerun's record of $CANCELLED names no node as its host"
+# Every node ran jobs, and nothing ran anywhere else (the profile has no local rules).
+HOSTS=$("$VENV/bin/python" -c '
+import collections, json, pathlib
+recs = [p for p in pathlib.Path("results/provenance").rglob("*.json") if p.parent.name != "config"]
+n = collections.Counter(json.loads(p.read_text())["host"] for p in recs)
+print(" ".join(f"{h}:{k}" for h, k in sorted(n.items())))')
+say "jobs per host (provenance records): $HOSTS"
+[ "$(echo "$HOSTS" | tr ' ' '\n' | cut -d: -f1 | xargs)" = "${NODE_NAMES[*]}" ] ||
+    die "the records' hosts are not exactly the nodes ${NODE_NAMES[*]}: $HOSTS"
 JOBS=$(grep -c "_slurm_rpc_submit_batch_job: JobId=" "$W/slurmctld.log" || true)
 SLURM_S=$((SECONDS - START))
 
