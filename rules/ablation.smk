@@ -50,6 +50,8 @@ rule ablation_offsets:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         triggers=TRIGGERS,
@@ -76,6 +78,8 @@ rule ablation_rules:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         triggers=TRIGGERS,
@@ -104,6 +108,8 @@ rule ablation_bend:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         groups=HOLD_GROUPS,
@@ -129,6 +135,8 @@ rule ablation_perturb:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         scales=ACFG["perturbation_scales"],

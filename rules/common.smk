@@ -1,5 +1,6 @@
 # Shared by every stage: the group plan, shards, and where a group's files live.
 import glob
+import os
 import re
 import sys
 
@@ -12,15 +13,17 @@ from pathlib import Path
 from embodied_snap import budget, protocol, runconfig
 from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
+from embodied_snap.lineage.dag import STATIC_DAG_ENV
 from embodied_snap.lineage.groups import deployment_dir
 from embodied_snap.lineage.imports import code_inputs
 from embodied_snap.paper.sections import category as category_of
 from embodied_snap.plan import PlanError
 from embodied_snap.policy.evaluations import evaluations, training_targets
-from embodied_snap.rawformat import RecordingError, group_paths
+from embodied_snap.rawformat import RecordingError, group_dir, group_paths
 from embodied_snap.verdicts import gate_tree
 
 RAW = config["raw_data"]["dir"]
+STATIC_DAG = os.environ.get(STATIC_DAG_ENV) == "1"
 BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
 
@@ -103,11 +106,34 @@ def group_files(gids):
     return [str(p) for g in gids for p in group_paths(RAW, g).values()]
 
 
+_RECORDED = set()
+
+
+def recorded(shard):
+    """Whether a shard's recordings are all on disk (its acquisition record exists and every group
+    the plan gives it has its folder). Only True is kept: a recorded shard stays so."""
+    if shard not in _RECORDED and _acquired(shard):
+        if all(group_dir(RAW, g).is_dir() for g in SHARDS[shard]):
+            _RECORDED.add(shard)
+    return shard in _RECORDED
+
+
+def await_recorded(shards):
+    """With the simulated rig, wait on the acquisition of each shard. The lineage's static DAG
+    (embodied_snap/lineage/dag.py, forceall: every checkpoint counts as still to run) reads a
+    recorded shard's files as they are, so the separation proof sees who reads them; a run keeps
+    the edge, since an edited acquisition rewrites the recordings (docs/benchmarks.md, "The
+    acquisition's checkpoints")."""
+    if TWIN:
+        for s in shards:
+            if not (STATIC_DAG and recorded(s)):
+                checkpoints.twin_acquire.get(shard=s)
+
+
 def shard_raw(wildcards):
     """A shard's recordings, once the gate passed them; with the simulated rig they exist once
     its acquisition ran."""
-    if TWIN:
-        checkpoints.twin_acquire.get(shard=wildcards.shard)
+    await_recorded([wildcards.shard])
     gate(SHARDS[wildcards.shard])
     return group_files(SHARDS[wildcards.shard])
 
@@ -132,9 +158,7 @@ def raw_of(**where):
 
     def files(wildcards):
         sel = select(**where)
-        if TWIN:
-            for s in sel.shard.unique():
-                checkpoints.twin_acquire.get(shard=s)
+        await_recorded(sel.shard.unique())
         gate(sel.group_id)
         return group_files(sel.group_id)
 
@@ -239,12 +263,19 @@ SIMULATOR = dict(
     snap="results/characterize/snap.json",
     workspace=f"{POL}/workspace.json",
 )
+# The policy config a job's params carry: how the searches are scheduled (policy.batch_runs) is no
+# job's param, so switching it reruns only the searches.
+POLICY_PARAMS = {k: v for k, v in PCFG.items() if k != "batch_runs"}
 SIM_PARAMS = dict(
-    policy=PCFG,
+    policy=POLICY_PARAMS,
     after_s1=DCFG["after_s1_s"],
     ee_m=config["rig"]["end_effector_m"],
     protocol=protocol_params("sampling", "windows", "primitive"),
 )
+
+# A job that rolls the ensemble out holds the GPU when config policy.device is cuda (profiles/slurm:
+# --gpus=1); auto is decided on the node, so it asks for none.
+SIM_RESOURCES = dict(gpu=int(PCFG["device"] == "cuda"))
 
 
 def shared_run(wildcards):

@@ -25,7 +25,7 @@ rule deploy_manifest:
         "../envs/esnap.yaml"
     params:
         deployment=DCONF,
-        policy=PCFG,
+        policy=POLICY_PARAMS,
         placements=DBUDGET["placements"],
         protocol=protocol_params("primitive", "rig"),
     script:
@@ -118,6 +118,8 @@ if DEPLOYED:
         priority: reads_recordings
         conda:
             "../envs/esnap.yaml"
+        resources:
+            **SIM_RESOURCES,
         params:
             **SIM_PARAMS,
         script:

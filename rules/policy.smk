@@ -79,10 +79,11 @@ rule policy_search:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
-        arch=lambda wc: wc.arch,
-        seed=lambda wc: int(wc.seed),
+        runs=lambda wc: [(wc.arch, int(wc.seed))],
         generations=PBUDGET["generations"],
         popsize=PBUDGET["popsize"],
         start=PCFG["start"],
@@ -94,6 +95,27 @@ rule policy_search:
         ],
     script:
         "../workflow_scripts/policy_search.py"
+
+
+# With config policy.batch_runs the benchmark's runs are one job instead: every run's generation
+# in one batch of rollouts, the schedule for a GPU (docs/cluster.md, "One GPU"). Each run draws
+# from its own generator, so it is the run policy_search makes, up to the batch's rounding.
+if PCFG["batch_runs"]:
+
+    ruleorder: policy_search_lockstep > policy_search
+
+    use rule policy_search as policy_search_lockstep with:
+        output:
+            run=POLICY_RUNS,
+            state=[r.removesuffix(".json") + ".cma.pkl" for r in POLICY_RUNS],
+        log:
+            "logs/policy/search_lockstep.log",
+        benchmark:
+            "benchmarks/policy/search_lockstep.tsv"
+        priority: 1
+        threads: workflow.cores
+        params:
+            runs=POLICY_RUNS_OF,
 
 
 rule policy_evaluate:
@@ -111,6 +133,8 @@ rule policy_evaluate:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
     script:
@@ -134,6 +158,8 @@ rule policy_fixed:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         seed=config["seed"],

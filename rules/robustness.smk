@@ -107,6 +107,8 @@ rule robustness_fixed:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         seed=config["seed"],
@@ -137,6 +139,8 @@ rule robustness_evaluate:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         generations=lambda wc: (

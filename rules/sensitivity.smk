@@ -148,6 +148,8 @@ rule landscape_optimum:
     conda:
         "../envs/esnap.yaml"
     threads: 2
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         size=LBUDGET,
@@ -182,6 +184,8 @@ rule landscape_summary:
     conda:
         "../envs/esnap.yaml"
     threads: 1
+    resources:
+        **SIM_RESOURCES,
     params:
         **SIM_PARAMS,
         seed=config["seed"],

@@ -83,11 +83,18 @@ def test_profile_groups_and_rules_exist(table):
     assert set(prof.get("group-components", {})) <= set(prof["groups"].values())
 
 
-@pytest.mark.parametrize("device,gpu", [("cuda", 1), ("cpu", 0)])
-def test_training_asks_for_a_gpu_only_on_cuda(device, gpu):
-    t = rule_table(REPO, config_overrides={"budget": "smoke", "dynamics": {"device": device}})
-    assert t["dynamics_train"]["resources"]["gpu"] == gpu
-    assert all(not v["resources"].get("gpu") for r, v in t.items() if r != "dynamics_train")
+@pytest.mark.parametrize("training", ["cuda", "cpu", "auto"])
+@pytest.mark.parametrize("rollouts", ["cuda", "cpu", "auto"])
+def test_jobs_ask_for_a_gpu_only_where_their_device_is_cuda(training, rollouts):
+    """dynamics.device: the training job; policy.device: every job whose code loads the ensemble's
+    rollouts (derived from the scripts' imports, so a new rollout job cannot be left out). auto is
+    decided on the node: it asks for none."""
+    t = rule_table(REPO, config_overrides={"budget": "smoke", "dynamics": {"device": training},
+                                           "policy": {"device": rollouts}})
+    rolls = {r for r, v in t.items() if any(c.endswith("embodied_snap/dynamics/rollout.py") for c in v["code"] or [])}
+    assert len(rolls) > 10 and "policy_search" in rolls and "dynamics_train" not in rolls
+    want = ({"dynamics_train"} if training == "cuda" else set()) | (rolls if rollouts == "cuda" else set())
+    assert {r for r, v in t.items() if v["resources"].get("gpu")} == want
 
 
 class _Res(dict):
@@ -115,5 +122,10 @@ def test_cuda_without_gpu_falls_back_to_cpu_with_one_line(monkeypatch):
     assert D.resolve("cpu", lines.append) == "cpu" and len(lines) == 1
     with pytest.raises(ValueError, match="dynamics.device"):
         D.resolve("tpu")
+    assert D.resolve("auto", lines.append) == "cpu" and len(lines) == 1  # auto says nothing
+    with pytest.raises(ValueError, match="policy.device: 'gpu' is not one of auto, cpu, cuda"):
+        D.resolve("gpu", key="policy.device")
     monkeypatch.setattr(torch.cuda, "is_available", lambda: True)
-    assert D.resolve("cuda", lines.append) == "cuda" and len(lines) == 1
+    monkeypatch.setattr(torch, "use_deterministic_algorithms", lambda on: lines.append(("deterministic", on)))
+    assert D.resolve("cuda", lines.append) == "cuda" and D.resolve("auto", lines.append) == "cuda"
+    assert lines[1:] == [("deterministic", True)] * 2

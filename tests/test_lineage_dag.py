@@ -43,3 +43,36 @@ def test_rule_table_reads_scripts_and_code(tmp_path):
     assert t["c"]["resources"]["gpu"] == 1 and "mem_mb" not in t["c"]["resources"]  # a function: per job
     assert {k: t["a"][k] for k in ("script", "code", "benchmark", "threads")} == {
         "script": None, "code": None, "benchmark": None, "threads": 1}
+
+
+def test_a_file_rewritten_beside_the_build_is_read_again(tmp_path, monkeypatch):
+    """Inside a run, a job beside the separation check may delete an output while Snakemake reads
+    the tree ('... although it existed before'): the build is tried again; any other error is not."""
+    import pytest
+    from snakemake.exceptions import WorkflowError
+    from snakemake.workflow import Workflow
+
+    from embodied_snap.lineage import dag
+
+    (tmp_path / "Snakefile").write_text(SNAKEFILE)
+    (tmp_path / "m.py").write_text("")
+    real, calls = Workflow._build_dag, []
+
+    def flaky(self, *a, **k):
+        calls.append(1)
+        if len(calls) == 1:
+            raise WorkflowError("Unable to obtain modification time of file a_1.txt although it existed before.")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(Workflow, "_build_dag", flaky)
+    monkeypatch.setattr(dag.time, "sleep", lambda s: None)
+    assert len(build_dag(tmp_path)) == 4 and len(calls) == 2
+
+    def broken(self, *a, **k):
+        calls.append(1)
+        raise WorkflowError("MissingInputException")
+
+    monkeypatch.setattr(Workflow, "_build_dag", broken)
+    with pytest.raises(WorkflowError, match="MissingInput"):
+        build_dag(tmp_path)
+    assert len(calls) == 3

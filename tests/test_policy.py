@@ -147,3 +147,44 @@ def test_cmaes_improves_held_out_reward_deterministically():
     assert c[-1]["evaluations"] == G * P * 8 and runs[0]["n_params"] == 155
     assert runs[0]["selection_reward"] == max(x["heldout_reward"] for x in c) <= 0
     assert runs[0]["selection_reward"] > zero / 3
+
+
+class CountingSim(ToySim):
+    def __init__(self):
+        self.batches = []
+
+    def run(self, act, p, normal):
+        self.batches.append(len(p))
+        return super().run(act, p, normal)
+
+
+def test_runs_in_lockstep_are_each_the_run_searched_alone():
+    """config policy.batch_runs: three runs (two architectures) in lockstep give each run's own
+    result, theta, curve and continuable state, exactly (ToySim's rewards are row by row), from
+    one batch of rollouts per generation (candidates x training targets + the held-out mean), plus
+    one for the last held-out score; runs that shared pycma's global generator would not."""
+    ws = _workspace()
+    G, P, K = 6, 4, 8
+    tr = targets.sample(ws, G * K, 11, 180, 0.03)
+    gen = np.arange(len(tr)) // K
+    train, sel = search.Targets(tr, ws), search.Targets(targets.sample(ws, 16, 22, 180, 0.03), ws)
+    norm, start = search.feature_stats(train), dict(init="zero", sigma0=0.1)
+    runs = [("shared", 0), ("centralised", 1), ("shared", 2)]
+    alone = [search.cmaes(ToySim(), a, s, train, gen, sel, norm, RANGES, G, P, start, progress=False,
+                          snapshots=(3,)) for a, s in runs]
+    sim = CountingSim()
+    together = search.lockstep(sim, [(a, s, None) for a, s in runs], train, gen, sel, norm, RANGES, G, P, start,
+                               progress=False, snapshots=(3,))
+    assert sim.batches == [3 * P * K] + [3 * (P * K + len(sel))] * (G - 1) + [3 * len(sel)]
+    states = [x.pop("state") for x in alone]
+    for x, y in zip(alone, together):
+        y.pop("state")
+        assert x == y
+    # continued to a larger budget, in lockstep and alone: the same runs
+    longer = train.take(np.r_[np.arange(len(tr)), np.arange(K)]), np.r_[gen, [G] * K]
+    resumed = [(a, s, dict(r, state=st)) for (a, s), r, st in zip(runs, alone, states)]
+    more = search.lockstep(ToySim(), resumed, *longer, sel, norm, RANGES, G + 1, P, start, progress=False)
+    for (a, s, r), m in zip(resumed, more):
+        m1 = search.cmaes(ToySim(), a, s, *longer, sel, norm, RANGES, G + 1, P, start, progress=False, resume=r)
+        m.pop("state"), m1.pop("state")
+        assert m == m1 and len(m["curve"]) == G + 1

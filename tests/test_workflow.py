@@ -10,6 +10,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from contextlib import contextmanager
@@ -78,6 +79,10 @@ def test_fresh_run_builds_figures_and_lineage(wf):
     assert len(index) == 48 and index.group_id.is_unique
     sep = json.loads((wf / "results/lineage/separation.json").read_text())
     assert sep["ok"] and not sep["violations"]
+    # The DAG proof sees the jobs that read recordings directly (raw_of): while every shard's files
+    # waited on its checkpoint, the proof's own DAG held placeholders there and it saw none.
+    assert sep["checked"]["dag_direct_readers"] > 0
+    assert "twin_phenomena" in sep["sources"]["release_mode"]["uses"]
     prov = json.loads((wf / "results/lineage/prov.json").read_text())
     assert "entity" in prov and "activity" in prov
     split = pd.read_csv(wf / "results/splits/split.csv")
@@ -85,6 +90,33 @@ def test_fresh_run_builds_figures_and_lineage(wf):
     # the sealed set, recorded beside the recordings when first split
     rec = json.loads((wf / "raw_data/sealed.json").read_text())["groups"]
     assert sorted(rec) == sorted(split[split.role == "sealed"].group_id)
+
+
+def test_runs_searched_in_lockstep_keep_the_claims_inside_the_seed_spread(wf, tmp_path):
+    """config policy.batch_runs (the GPU's schedule, here on CPU): the benchmark's runs in one job,
+    every generation of all of them one batch of rollouts. On a copy of the smoke run only the
+    searches and what reads them rerun, and each architecture's mean reward and attachment lie
+    within the seed spread (sd) of the one-job-per-run claims; each run is the same search (its
+    own generator), so only the batch's floating-point rounding can move them."""
+    d = tmp_path / "wf"
+    shutil.copytree(wf, d, symlinks=True)
+    (d / "batch.yaml").write_text("policy:\n  batch_runs: true\n")
+    batch = ["--configfile", "config.yaml", "batch.yaml"]
+    jobs = {r for r, _ in dry_jobs(d, "results/policy/claims.csv", *batch)}
+    assert jobs == {"policy_search_lockstep", "policy_evaluate", "policy_summary", "table_policy_claims"}
+    snakemake(d, "results/policy/claims.csv", *batch)
+    # the claims' numbers, as results/policy/claims.csv reads them from the summary
+    summaries = [json.loads((t / "results/policy/summary.json").read_text()) for t in (wf, d)]
+    runs = [json.loads(p.read_text()) for p in sorted((d / "results/policy/runs").glob("*.json"))]
+    archs = sorted({r["arch"] for r in runs})
+    assert len(runs) == len(list((wf / "results/policy/runs").glob("*.json"))) and len(archs) > 1
+    spread = [a for a in archs if summaries[0]["reward"][a]["n"] > 1]  # an sd needs two seeds
+    assert spread
+    for a in spread:
+        for what in ("reward", "attachment_report"):
+            m = [s[what][a]["mean"] for s in summaries]
+            sd = max(s[what][a]["sd"] for s in summaries)
+            assert abs(m[0] - m[1]) <= sd, (a, what, m, sd)
 
 
 def test_robustness_variants_extend_the_benchmark(wf):

@@ -1,5 +1,7 @@
-"""One CMA-ES run: an architecture and an optimisation seed (paper IV-B/IV-C); or such a run continued
-to a larger budget (input `resume`: the run and its CMA-ES state)."""
+"""CMA-ES runs (paper IV-B/IV-C): one architecture and optimisation seed, or such a run continued to a
+larger budget (input `resume`: the run and its CMA-ES state); or several runs in lockstep (config
+policy.batch_runs), each generation of all of them one batch of rollouts. Params `runs`: the
+(architecture, seed) of each output, in order."""
 
 from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
 
@@ -25,14 +27,16 @@ with tracked(snakemake):
     resume = None
     if "resume" in I.keys():
         resume = dict(json.load(open(I.resume)), state=open(I.resume_state, "rb").read())
-    norm = resume["norm"] if resume else search.feature_stats(train)
-    run = search.cmaes(sim, P.arch, P.seed, train, tr["generation"].to_numpy(),
-                       search.Targets(read_parquet(I.selection), ws), norm,
-                       P.policy["ranges"], P.generations, P.popsize, P.start,
-                       snapshots=P.snapshots, resume=resume)
-    c = run["curve"]
-    print(f"{P.arch} seed {P.seed}: held-out {c[0]['heldout_reward']:.3f} -> {c[-1]['heldout_reward']:.3f}, "
-          f"selected generation {run['selected_generation']} ({run['selection_reward']:.3f})", file=sys.stderr)
-    with open(snakemake.output.state, "wb") as f:  # already pickled by cmaes
-        f.write(run.pop("state"))
-    write_json(run, snakemake.output.run)
+    O = snakemake.output  # one run and state, or (lockstep) the lists of params runs, in order
+    outputs = list(zip(*([o] if isinstance(o, str) else o for o in (O.run, O.state))))
+    done = search.lockstep(sim, [(a, s, resume) for a, s in P.runs], train, tr["generation"].to_numpy(),
+                           search.Targets(read_parquet(I.selection), ws), search.feature_stats(train),
+                           P.policy["ranges"], P.generations, P.popsize, P.start, snapshots=P.snapshots)
+    for run, (run_path, state_path) in zip(done, outputs):
+        c = run["curve"]
+        print(f"{run['arch']} seed {run['seed']}: held-out {c[0]['heldout_reward']:.3f} -> "
+              f"{c[-1]['heldout_reward']:.3f}, selected generation {run['selected_generation']} "
+              f"({run['selection_reward']:.3f})", file=sys.stderr)
+        with open(state_path, "wb") as f:  # already pickled by cmaes
+            f.write(run.pop("state"))
+        write_json(run, run_path)

@@ -38,9 +38,9 @@ from .model import TIP, load
 
 class Ensemble:
     def __init__(self, paths=(), device: str | None = None, models=None):
-        # config dynamics.device where a job passes it; CPU otherwise (a rollout job asks SLURM
-        # for no GPU). "cuda" without a GPU falls back to CPU with one log line.
-        self.device = resolve(device or "cpu")
+        # config policy.device where a job passes it (for_job); CPU otherwise. "cuda" without a
+        # GPU falls back to CPU with one log line.
+        self.device = resolve(device or "cpu", key="policy.device")
         self.models = list(models) if models is not None else [load(p, self.device) for p in paths]
         g = self.models[0].gru
         self.H, self.layers, self.n_in = g.hidden_size, g.num_layers, g.input_size

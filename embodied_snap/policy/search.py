@@ -66,6 +66,64 @@ def score(sim, jobs: list[tuple[dict, Targets]]) -> np.ndarray:
     return np.array([x.mean() for x in np.split(r, np.cumsum([len(T) for _, T in jobs])[:-1])])
 
 
+class _Run:
+    """One CMA-ES run's state between generations (see `cmaes`)."""
+
+    def __init__(self, arch, seed, popsize, generations, start, snapshots, resume, held_targets, norm, ranges):
+        self.arch, self.seed, self.popsize, self.snapshots = arch, seed, popsize, snapshots
+        self.select, self.norm, self.ranges = held_targets, norm, ranges
+        if resume is None:
+            self.es = cma.CMAEvolutionStrategy(networks.initial(arch, start, seed), start["sigma0"],
+                                               {"popsize": popsize, "verbose": -9, "maxiter": generations,
+                                                # its own generator: runs in lockstep draw apart
+                                                "randn": np.random.RandomState(seed + 1).randn,
+                                                "seed": np.nan})
+            self.curve, self.best, self.snaps = [], (-np.inf, None, 0), {}
+        else:  # the run's last held-out score is logged already
+            self.es = pickle.loads(resume["state"])
+            self.curve, self.snaps = [dict(c) for c in resume["curve"]], dict(resume.get("snapshots", {}))
+            self.best = (resume["selection_reward"], np.asarray(resume["theta"]), resume["selected_generation"])
+        self.pending = False  # the current mean's held-out score is not yet logged
+        self.X = None
+
+    def held_job(self):
+        return policy_actions(self.arch, self.es.mean, self.select, self.norm, self.ranges), self.select
+
+    def jobs(self, T: Targets) -> list:
+        """This generation's rollouts: its candidates on T, then the previous mean's held-out score."""
+        self.X = self.es.ask()
+        jobs = [(policy_actions(self.arch, x, T, self.norm, self.ranges), T) for x in self.X]
+        return jobs + [self.held_job()] if self.pending else jobs
+
+    def tell(self, R: np.ndarray, gen: int, per_gen: int) -> float | None:
+        held = None
+        if self.pending:  # es.mean is still the mean after the previous generation
+            held = self.log_held(float(R[-1]))
+        P = self.popsize
+        self.es.tell(self.X, list(-R[:P]))
+        self.pending = True
+        self.curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=None,
+                               train_reward_mean=float(R[:P].mean()), train_reward_best=float(R[:P].max())))
+        return held
+
+    def log_held(self, held: float) -> float:
+        mean = np.array(self.es.mean)
+        self.curve[-1]["heldout_reward"] = held
+        if held > self.best[0]:
+            self.best = (held, mean, len(self.curve))
+        if len(self.curve) in self.snapshots:
+            self.snaps[str(len(self.curve))] = dict(selected_generation=self.best[2], selection_reward=self.best[0],
+                                                    theta=self.best[1].tolist(), final_heldout_reward=held)
+        return held
+
+    def result(self, per_gen: int) -> dict:
+        best, curve = self.best, self.curve
+        return dict(arch=self.arch, seed=self.seed, n_params=networks.n_params(self.arch),
+                    evaluations_per_generation=per_gen, curve=curve, selected_generation=best[2],
+                    selection_reward=best[0], final_heldout_reward=curve[-1]["heldout_reward"],
+                    theta=best[1].tolist(), norm=self.norm, snapshots=self.snaps, state=pickle.dumps(self.es))
+
+
 def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
           ranges: dict, generations: int, popsize: int, start: dict, progress: bool = True,
           snapshots=(), resume: dict | None = None) -> dict:
@@ -77,51 +135,41 @@ def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select:
     snapshots: generation counts at which the selection so far is kept (`run["snapshots"]`): a run
     stopped there selects exactly that policy, since CMA-ES does not depend on the total budget.
     resume: a finished run (with its `state`) to continue up to `generations` (a larger budget).
-    The returned run carries `state` (bytes: the pickled CMA-ES object; pycma samples with
-    np.random.randn, and pickling that bound method takes the random state along, so a continuation
-    in another process draws what the longer run would have) for such a continuation; it is not JSON
-    and is written on its own."""
-    npar = networks.n_params(arch)
-    if resume is None:
-        es = cma.CMAEvolutionStrategy(networks.initial(arch, start, seed), start["sigma0"],
-                                      {"popsize": popsize, "seed": seed + 1, "verbose": -9, "maxiter": generations})
-        curve, best, snaps = [], (-np.inf, None, 0), {}
-    else:  # the run's last held-out score is logged already
-        es = pickle.loads(resume["state"])
-        curve, snaps = [dict(c) for c in resume["curve"]], dict(resume.get("snapshots", {}))
-        best = (resume["selection_reward"], np.asarray(resume["theta"]), resume["selected_generation"])
+    The returned run carries `state` (bytes: the pickled CMA-ES object, with the run's own random
+    generator, so a continuation in another process draws what the longer run would have) for such
+    a continuation; it is not JSON and is written on its own."""
+    return lockstep(sim, [(arch, seed, resume)], train, gen_of, select, norm, ranges, generations, popsize,
+                    start, progress, snapshots)[0]
+
+
+def lockstep(sim, runs: list[tuple], train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
+             ranges: dict, generations: int, popsize: int, start: dict, progress: bool = True,
+             snapshots=()) -> list[dict]:
+    """Several CMA-ES runs, (arch, seed, resume) each, on the same targets, a generation at a time:
+    each generation's rollouts of every run are one batch (config policy.batch_runs, the schedule
+    for a device with room for many populations at once). Each run samples from its own generator
+    (seed + 1), so a run's result is `cmaes`'s for it alone, up to the floating-point effect of the
+    batch on the rollouts; a resumed run's norm is its own."""
+    rs = [_Run(a, s, popsize, generations, start, snapshots, res, select, res["norm"] if res else norm, ranges)
+          for a, s, res in runs]
+    first = {len(r.curve) for r in rs}
+    if len(first) != 1:
+        raise ValueError(f"runs in lockstep start at one generation, not at {sorted(first)}")
     per_gen = evaluations(1, popsize, int((gen_of == gen_of.min()).sum()))
-    held_job = lambda: (policy_actions(arch, es.mean, select, norm, ranges), select)  # noqa: E731
-
-    def log_held(held, mean):
-        nonlocal best
-        curve[-1]["heldout_reward"] = held
-        if held > best[0]:
-            best = (held, mean, len(curve))
-        if len(curve) in snapshots:
-            snaps[str(len(curve))] = dict(selected_generation=best[2], selection_reward=best[0],
-                                          theta=best[1].tolist(), final_heldout_reward=held)
-        bar.set_postfix(heldout=f"{held:.3f}")
-
-    pending = False  # the current mean's held-out score is not yet logged
-    bar = tqdm(range(len(curve), generations), desc=f"{arch} seed {seed}", disable=not progress, mininterval=5)
+    desc = f"{runs[0][0]} seed {runs[0][1]}" if len(rs) == 1 else f"{len(rs)} runs in lockstep"
+    bar = tqdm(range(first.pop(), generations), desc=desc, disable=not progress, mininterval=5)
     for gen in bar:
-        X = es.ask()
         T = train.take(np.flatnonzero(gen_of == gen))
-        jobs = [(policy_actions(arch, x, T, norm, ranges), T) for x in X]
-        R = score(sim, jobs + [held_job()] if pending else jobs)
-        if pending:  # es.mean is still the mean after the previous generation
-            log_held(float(R[-1]), np.array(es.mean))
-        es.tell(X, list(-R[:popsize]))
-        pending = True
-        curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=None,
-                          train_reward_mean=float(R[:popsize].mean()), train_reward_best=float(R[:popsize].max())))
+        jobs = [r.jobs(T) for r in rs]
+        R = score(sim, [j for js in jobs for j in js])
+        held = [r.tell(x, gen, per_gen) for r, x in zip(rs, np.split(R, np.cumsum([len(js) for js in jobs])[:-1]))]
+        if held[0] is not None:
+            bar.set_postfix(heldout=f"{np.mean(held):.3f}")
+    pending = [r for r in rs if r.pending]
     if pending:
-        log_held(float(score(sim, [held_job()])[0]), np.array(es.mean))
-    return dict(arch=arch, seed=seed, n_params=npar, evaluations_per_generation=per_gen, curve=curve,
-                selected_generation=best[2], selection_reward=best[0],
-                final_heldout_reward=curve[-1]["heldout_reward"], theta=best[1].tolist(), norm=norm,
-                snapshots=snaps, state=pickle.dumps(es))
+        for r, held in zip(pending, score(sim, [r.held_job() for r in pending])):
+            r.log_held(float(held))
+    return [r.result(per_gen) for r in rs]
 
 
 def at_budget(run: dict, generations: int) -> dict:

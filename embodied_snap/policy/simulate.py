@@ -72,9 +72,10 @@ def from_files(models, bank_path, snap_path, workspace_path, cfg: dict, after_s1
     return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, cfg, after_s1, ee_m, proto), ws
 
 
-def for_job(inputs, params, device=None):
+def for_job(inputs, params):
     """The simulator of a workflow job whose rule takes SIMULATOR inputs and SIM_PARAMS params
-    (rules/policy.smk): the ensemble, hold bank, P_snap, workspace, config policy and protocol."""
+    (rules/policy.smk): the ensemble (on config policy.device), hold bank, P_snap, workspace,
+    config policy and protocol."""
     I, P = inputs, params
     return from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m, from_params(P.protocol),
-                      device)
+                      P.policy["device"])
