@@ -145,25 +145,37 @@ def main():
                 for k, v in by.items()}
 
     short = {}
-    step("repeat", lambda: (short.setdefault("a", strip(lockstep(sim, a.short))),
-                            short.setdefault("b", strip(lockstep(sim, a.short))),
-                            dict(generations=a.short, identical=short["a"] == short["b"]))[2])
-    step("alone", lambda: (search.cmaes(sim, "shared", 0, train, gen, sel, norm, p["ranges"], a.short, b["popsize"],
-                                        p["start"], progress=False), dict(generations=a.short, runs=1))[1])
+
+    def repeat():
+        short["a"], short["b"] = (strip(lockstep(sim, a.short)) for _ in range(2))
+        return dict(generations=a.short, identical=short["a"] == short["b"])
+
+    def alone():
+        search.cmaes(sim, "shared", 0, train, gen, sel, norm, p["ranges"], a.short, b["popsize"], p["start"],
+                     progress=False)
+        return dict(generations=a.short, runs=1)
+
+    def full():
+        return dict(generations=a.generations, per_arch=per_arch(lockstep(sim, a.generations)))
+
+    step("repeat", repeat)
+    step("alone", alone)
     out["alone"]["s_per_run_generation"] = round(out["alone"]["wall_s"] / a.short, 3)
     out["repeat"]["s_per_run_generation"] = round(out["repeat"]["wall_s"] / 2 / a.short / len(runs), 4)
-    full = {}
-    step("lockstep", lambda: (full.setdefault("runs", lockstep(sim, a.generations)),
-                              dict(generations=a.generations, per_arch=per_arch(full["runs"])))[1])
+    step("lockstep", full)
     out["lockstep"]["s_per_generation"] = round(out["lockstep"]["wall_s"] / a.generations, 3)
     if "train" not in skip:
         d, db = cfg["dynamics"], cfg["budgets"]["paper"]["dynamics"]
         Wtr = tiled(load_windows(R / "splits/windows_train.npz"), db["windows_per_epoch"])
         Wva = tiled(load_windows(R / "splits/windows_validation.npz"), d["val_windows"])
-        step("train", lambda: (T.train(Wtr, Wva, 0, epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"],
-                                       val_windows=d["val_windows"], batch_size=d["batch_size"], lr=d["lr"],
-                                       patience=db["epochs"], device=a.device, log=lambda r: None),
-                               dict(epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"]))[1])
+
+        def fit():
+            T.train(Wtr, Wva, 0, epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"],
+                    val_windows=d["val_windows"], batch_size=d["batch_size"], lr=d["lr"], patience=db["epochs"],
+                    device=a.device, log=lambda r: None)
+            return dict(epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"])
+
+        step("train", fit)
     if "cpu" not in skip:
         torch.set_num_threads(a.cpu_threads)
         cpu_sim, _ = sim_on("cpu")

@@ -1,4 +1,5 @@
 # Shared by every stage: the group plan, shards, and where a group's files live.
+import functools
 import glob
 import os
 import re
@@ -106,16 +107,11 @@ def group_files(gids):
     return [str(p) for g in gids for p in group_paths(RAW, g).values()]
 
 
-_RECORDED = set()
-
-
+@functools.cache  # asked only for the static DAG, whose tree does not change while it is parsed
 def recorded(shard):
     """Whether a shard's recordings are all on disk (its acquisition record exists and every group
-    the plan gives it has its folder). Only True is kept: a recorded shard stays so."""
-    if shard not in _RECORDED and _acquired(shard):
-        if all(group_dir(RAW, g).is_dir() for g in SHARDS[shard]):
-            _RECORDED.add(shard)
-    return shard in _RECORDED
+    the plan gives it has its folder)."""
+    return _acquired(shard) and all(group_dir(RAW, g).is_dir() for g in SHARDS[shard])
 
 
 def await_recorded(shards):

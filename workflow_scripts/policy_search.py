@@ -37,6 +37,6 @@ with tracked(snakemake):
         print(f"{run['arch']} seed {run['seed']}: held-out {c[0]['heldout_reward']:.3f} -> "
               f"{c[-1]['heldout_reward']:.3f}, selected generation {run['selected_generation']} "
               f"({run['selection_reward']:.3f})", file=sys.stderr)
-        with open(state_path, "wb") as f:  # already pickled by cmaes
+        with open(state_path, "wb") as f:  # already pickled by search.lockstep
             f.write(run.pop("state"))
         write_json(run, run_path)

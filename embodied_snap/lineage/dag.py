@@ -84,6 +84,10 @@ def rule_table(workdir=".", configfiles=None, config_overrides=None) -> dict[str
         return out
 
 
+RETRIES = 5
+CONCURRENT = "although it existed before"  # Snakemake's message for a file deleted while it read the tree
+
+
 def build_dag(workdir=".", configfiles=None, config_overrides=None, targets=("all",)) -> list[dict]:
     """The jobs of the workflow in `workdir`, forceall (jobs whose outputs exist are in it):
     [{rule, wildcards, input, output, down: [indices of jobs that consume its outputs]}]."""
@@ -99,10 +103,6 @@ def build_dag(workdir=".", configfiles=None, config_overrides=None, targets=("al
             if CONCURRENT not in str(e) or attempt == RETRIES - 1:
                 raise
             time.sleep(1)
-
-
-RETRIES = 5
-CONCURRENT = "although it existed before"  # Snakemake's message for a file deleted while it read the tree
 
 
 def _build(workdir, configfiles, config_overrides, targets, DAGSettings) -> list[dict]:
