@@ -121,8 +121,6 @@ def simulate_group(
     calib = dict(base_pos=sess["base_pos"], base_quat=sess["base_quat"])
     mc = MC.mocap_frame(trial, calib, target, r)
     sl = MC.servo_frame(trial.t, goals, trial.present, trial.tension, r)
-    R = MC.quat_to_mat(np.asarray(sess["base_quat"]))
-    axis = R @ np.array([0.0, -1.0, 0.0])
     meta = dict(
         format_version=RF.FORMAT_VERSION,
         group_id=gid,
@@ -132,7 +130,7 @@ def simulate_group(
         recorded_at=_recorded_at(gid, session),
         source="twin",
         base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
-        axis=[float(x) for x in axis / np.linalg.norm(axis)],
+        axis=MC.base_axis(sess["base_quat"]),
         program={k: (round(v, 4) if isinstance(v, float) else v) for k, v in prog.items()},
         labels=labels,
     )

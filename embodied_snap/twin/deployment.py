@@ -95,11 +95,9 @@ def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, sessio
     vtip = np.convolve(vtip, np.ones(4) / 4, mode="same")
     attached = ev["sealed"] is not None
     retained = retrieved(mc)
-    R = MC.quat_to_mat(np.asarray(sess["base_quat"]))
-    axis = R @ np.array([0.0, -1.0, 0.0])
     meta.update(session=session, source="twin", recorded_at=(T0 + _dt.timedelta(seconds=120 * k)).isoformat(),
                 base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
-                axis=[float(x) for x in axis / np.linalg.norm(axis)],
+                axis=MC.base_axis(sess["base_quat"]),
                 target=dict(size_m=[2 * h for h in BLOCK_HALF], face="+z"))
     meta["labels"].update(attached=bool(attached), retrieved=bool(retained),
                           snap_speed_event=bool(vtip.max() >= speed_mps))

@@ -80,12 +80,10 @@ def record(st: Stepper, target: dict | None, sess: dict, r: np.random.Generator,
         retrieved = bool(attached and r.uniform() < 1.0 - ev.get("seal_tilt", 0.0) / 300.0)  # tilted seals leak
     calib = dict(base_pos=sess["base_pos"], base_quat=sess["base_quat"])
     mc = MC.mocap_frame(trial, calib, target, r)
-    R = MC.quat_to_mat(np.asarray(sess["base_quat"]))
-    axis = R @ np.array([0.0, -1.0, 0.0])
     return dict(mocap=mc, attached=attached, retrieved=retrieved,
                 t_attach=None if ev["sealed"] is None else float(ev["sealed"]),
                 base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
-                axis=[float(x) for x in axis / np.linalg.norm(axis)],
+                axis=MC.base_axis(sess["base_quat"]),
                 snap_speed_event=bool(vtip.max() >= speed_mps), events=dict(ev))
 
 

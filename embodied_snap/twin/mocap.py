@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from ..quat import from_rotvec as quat_from_rotvec
-from ..quat import mat_apply, qmul
+from ..quat import mat_apply, norm3, qmul
 from ..quat import to_matrix as quat_to_mat
 from ..rawformat import BODIES, MOCAP_HZ, mocap_columns, servo_columns
 from . import servo as SV
@@ -29,6 +29,13 @@ def _resample(t_step, x, t_out):
     idx = np.clip(np.searchsorted(t_step, t_out) - 1, 0, len(t_step) - 2)
     a = ((t_out - t_step[idx]) / (t_step[idx + 1] - t_step[idx])).reshape((-1,) + (1,) * (x.ndim - 1))
     return x[idx] * (1 - a) + x[idx + 1] * a
+
+
+def base_axis(base_quat) -> list[float]:
+    """The base's -y (the arm hangs along it) in the lab, unit: meta.json's `axis`. Elementwise,
+    as the recordings are, so its last bits are the same on every CPU (a BLAS product's were not)."""
+    a = mat_apply(quat_to_mat(np.asarray(base_quat, float)), [0.0, -1.0, 0.0])
+    return [float(x) for x in a / norm3(a)]
 
 
 def _to_lab(p, R, B):
