@@ -35,7 +35,7 @@ rule deploy_manifest:
 if TWIN:
 
     rule twin_deployment:
-        """The trials through the virtual Dynamixel bus on the simulated rig, two at a time."""
+        """The trials through the virtual Dynamixel bus on the simulated rig, side by side."""
         input:
             manifest=f"{DEPLOY}/manifest.json",
             code=imports("twin_deployment"),
@@ -47,10 +47,13 @@ if TWIN:
             "logs/deployment/trials.log",
         benchmark:
             "benchmarks/deployment/trials.tsv"
+        # It deploys the shared runs, so it goes before the other searches and runs beside them:
+        # real-time trials use little of the one slot they hold (config twin.trials_at_a_time).
+        priority: 1
         conda:
             "../envs/esnap.yaml"
-        threads: 2
         params:
+            at_a_time=config["twin"]["trials_at_a_time"],
             placements=DBUDGET["placements"],
             trials_per_placement=DBUDGET["trials_per_placement"],
             seed=config["seed"],

@@ -46,6 +46,27 @@ rule dynamics_train:
         "../workflow_scripts/dynamics_train.py"
 
 
+# With config dynamics.seeds_in_one_job (the local default) the seeds train side by side in one job
+# of up to workflow.cores threads: three one-core jobs on two cores leave one idle while the third
+# trains alone. Each seed's model is the one its own job gives; a cluster keeps a job per seed
+# (profiles/slurm).
+if DCFG["seeds_in_one_job"]:
+
+    ruleorder: dynamics_train_seeds > dynamics_train
+
+    use rule dynamics_train as dynamics_train_seeds with:
+        output:
+            model=expand(f"{DYN}/models/seed{{seed}}.pt", seed=DSEEDS),
+            curve=expand(f"{DYN}/models/seed{{seed}}_curve.csv", seed=DSEEDS),
+        log:
+            "logs/dynamics/train_seeds.log",
+        benchmark:
+            "benchmarks/dynamics/train_seeds.tsv"
+        threads: min(len(DSEEDS) * DCFG["threads"], workflow.cores)
+        params:
+            seed=DSEEDS,
+
+
 rule dynamics_persistence:
     """Persistence baseline x_hat_{t+h} = x_t on the validation windows, h = 1..35."""
     input:

@@ -93,7 +93,10 @@ def test_jobs_ask_for_a_gpu_only_where_their_device_is_cuda(training, rollouts):
                                            "policy": {"device": rollouts}})
     rolls = {r for r, v in t.items() if any(c.endswith("embodied_snap/dynamics/rollout.py") for c in v["code"] or [])}
     assert len(rolls) > 10 and "policy_search" in rolls and "dynamics_train" not in rolls
-    want = ({"dynamics_train"} if training == "cuda" else set()) | (rolls if rollouts == "cuda" else set())
+    # the training jobs: a job per seed, or every seed in one (config dynamics.seeds_in_one_job)
+    fits = {r for r, v in t.items() if v["script"] == "dynamics_train.py"}
+    assert fits == {"dynamics_train", "dynamics_train_seeds"}
+    want = (fits if training == "cuda" else set()) | (rolls if rollouts == "cuda" else set())
     assert {r for r, v in t.items() if v["resources"].get("gpu")} == want
 
 

@@ -204,6 +204,27 @@ def test_training_is_deterministic(windows, trained, monkeypatch):
     assert Ensemble(models=[m2], device="cuda").device == "cpu"
 
 
+def test_seeds_side_by_side_are_each_the_seed_trained_alone(windows, trained):
+    """config dynamics.seeds_in_one_job: the seeds trained at once, a forked process each, give
+    every seed the model and curve train() gives it alone (the curve's clock aside), in seed order."""
+    tr, va = windows
+    kw = dict(epochs=4, windows_per_epoch=256, val_windows=128, batch_size=64, lr=3e-3, patience=10)
+    alone = T.train(tr, va, seed=1, log=lambda r: None, **kw)
+    rows = []
+    fits = T.train_seeds(tr, va, [1, 0], threads=1, log=lambda s, r: rows.append(s), **kw)
+    for (m, c), (m0, c0) in zip(fits, [alone, trained]):
+        for a, b in zip(m.state_dict().values(), m0.state_dict().values()):
+            torch.testing.assert_close(a, b, atol=0, rtol=0)
+        assert [{k: v for k, v in r.items() if k != "seconds"} for r in c] == \
+               [{k: v for k, v in r.items() if k != "seconds"} for r in c0]
+    assert rows == []  # forked: each seed logged in its own process
+    # one seed, or a device other than the CPU: in turn, in this process, each row logged with its seed
+    (m, _), = T.train_seeds(tr, va, [1], log=lambda s, r: rows.append(s), **kw)
+    assert rows == [1] * 4
+    for a, b in zip(m.state_dict().values(), alone[0].state_dict().values()):
+        torch.testing.assert_close(a, b, atol=0, rtol=0)
+
+
 def test_carried_state_vs_reencoded_window(windows, trained):
     """Eq. 4 literally re-encodes x_{t+h-19..t+h}; the carried state also remembers older frames.
     Step 1 is identical; afterwards the gap must stay well below the model's own error."""

@@ -1,7 +1,7 @@
 """The deployment trials on the simulated rig: each through the virtual Dynamixel bus with
-`esnap deploy`'s client, two at a time. Complete trials that pass the gate enter the deployment
-index; aborted ones are listed with their cause and never enter it (deploy.trials, as for the
-lab's trials)."""
+`esnap deploy`'s client, config twin.trials_at_a_time side by side. Complete trials that pass the
+gate enter the deployment index; aborted ones are listed with their cause and never enter it
+(deploy.trials, as for the lab's trials)."""
 
 from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
 
@@ -25,7 +25,7 @@ with tracked(snakemake):
     plan = [((k - 1) % n_pl + 1, k) for k in range(1, n_pl * per + 1)]  # placements interleaved over the session
     job = partial(run_trial, snakemake.input.manifest, raw=raw, seed=P.seed, n_sessions=P.sessions, dt=P.dt,
                   speed_mps=P.speed_mps)
-    with ProcessPoolExecutor(snakemake.threads) as pool:
+    with ProcessPoolExecutor(P.at_a_time) as pool:
         results = list(pool.map(job, [p for p, _ in plan], [k for _, k in plan]))
     rows, aborted = T.gate(raw, results, Limits(**P.gate))
     for r in rows:

@@ -38,6 +38,8 @@ FILE_WRITERS = frozenset({"twin_truth", "policy_targets", "ablation_targets", "r
 # ledger that gathers every stage's claims (with the report captions it writes).
 LEDGER = "table_claims"
 CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_validation", "figures", LEDGER)
+# The GRU seeds: a job each, or all in one (config dynamics.seeds_in_one_job).
+DYN_TRAIN = ("dynamics_train", "dynamics_train_seeds")
 DYN_REPORTS = ("table_dynamics_claims", "fig_gates", "figures", LEDGER)
 POLICY_RUNS = ("policy_search", "policy_evaluate", "policy_fixed", "policy_summary")
 # Fig. 1 shows the selected policy's commands for one evaluation target.
@@ -107,11 +109,11 @@ POLICY: dict[str, Source] = {
         readers=("deploy_table", "fig_deployment", "check_separation", "table_evidence", LEDGER)),
     # The dynamics corpus by split role (440 / 78 / 20).
     "train": Source(
-        ("windows(role=train)", "dynamics_train", "characterize_snap", "dynamics_hold", "policy_workspace",
+        ("windows(role=train)", *DYN_TRAIN, "characterize_snap", "dynamics_hold", "policy_workspace",
          "policy_targets", "ablation_targets", "robustness_targets", *MODEL_USERS, *CHAR_REPORTS),
         "train groups stay in the training windows; the hold bank and snap classifier use them"),
     "validation": Source(
-        ("windows(role=validation)", "dynamics_train", "dynamics_persistence", *MODEL_USERS),
+        ("windows(role=validation)", *DYN_TRAIN, "dynamics_persistence", *MODEL_USERS),
         "validation groups feed model selection and the validation errors; never the training "
         "windows, the hold bank or the snap classifier", held_out=True),
     "sealed": Source(
