@@ -6,9 +6,9 @@
 A job starts at the time stamp above its `rule`/`checkpoint` block and ends at the one above its
 `Finished jobid` line (whole seconds, Snakemake's resolution). A stage is the rules/<stage>.smk file
 that defines the rule. Prints, per stage: jobs, the first start and last end (s from the run's
-start), the job-seconds, and their share of all job-seconds; then the seconds during which fewer
-jobs ran than there are cores while work remained. --png draws one lane per core, each job a bar
-coloured by stage; --samples (t_s, load1 columns, e.g. from a sampler beside the run) adds the load
+start), the job-seconds, and their share of all job-seconds; then the seconds during which the
+running jobs' threads took fewer cores than there are while work remained. --png draws one lane per
+core, each job a bar on as many lanes as its threads, coloured by stage; --samples (t_s, load1 columns, e.g. from a sampler beside the run) adds the load
 average under it.
 """
 
@@ -78,8 +78,9 @@ def shares(js: list[dict], stage_of: dict[str, str]) -> list[dict]:
 
 
 def occupancy(js: list[dict]) -> Counter:
-    """Seconds during which k jobs ran, k = 0, 1, 2, ..."""
-    ev = sorted([(j["start"], 1) for j in js] + [(j["end"], -1) for j in js], key=lambda e: (e[0], -e[1]))
+    """Seconds during which the running jobs' threads took k cores, k = 0, 1, 2, ..."""
+    ev = sorted([(j["start"], j["threads"]) for j in js] + [(j["end"], -j["threads"]) for j in js],
+                key=lambda e: (e[0], -e[1]))
     c, cur, prev = Counter(), 0, 0.0
     for t, d in ev:
         c[cur] += t - prev
@@ -87,17 +88,18 @@ def occupancy(js: list[dict]) -> Counter:
     return c
 
 
-def lanes(js: list[dict], cores: int) -> list[int]:
-    """A lane per job (a job on a busy lane goes to the next free one; more than `cores` can
-    overlap at the log's one-second resolution)."""
+def lanes(js: list[dict], cores: int) -> list[list[int]]:
+    """The lanes of each job, one per thread (a job on a busy lane goes to the next free one; more
+    than `cores` can overlap at the log's one-second resolution)."""
     free, out = [0.0] * cores, []
     for j in js:
-        k = next((i for i, f in enumerate(free) if f <= j["start"]), None)
-        if k is None:
+        ks = [i for i, f in enumerate(free) if f <= j["start"]][: j["threads"]]
+        while len(ks) < j["threads"]:
             free.append(0.0)
-            k = len(free) - 1
-        free[k] = j["end"]
-        out.append(k)
+            ks.append(len(free) - 1)
+        for k in ks:
+            free[k] = j["end"]
+        out.append(ks)
     return out
 
 
@@ -113,9 +115,10 @@ def draw(js, stage_of, cores, png, samples=None):
     fig, axes = plt.subplots(2 if samples else 1, 1, figsize=(9, 3.2 if samples else 2.2), sharex=True,
                              gridspec_kw={"height_ratios": [2, 1]} if samples else None, squeeze=False)
     ax = axes[0][0]
-    for j, k in zip(js, lanes(js, cores)):
-        ax.barh(k, max(j["end"] - j["start"], 0.5) / 60, left=j["start"] / 60, height=0.8,
-                color=colour[stage_of.get(j["rule"], "?")], edgecolor="white", linewidth=0.3)
+    for j, ks in zip(js, lanes(js, cores)):
+        for k in ks:
+            ax.barh(k, max(j["end"] - j["start"], 0.5) / 60, left=j["start"] / 60, height=0.8,
+                    color=colour[stage_of.get(j["rule"], "?")], edgecolor="white", linewidth=0.3)
     ax.set_yticks(range(cores), [f"core {i + 1}" for i in range(cores)])
     ax.set_ylim(-0.6, max(cores, 1) - 0.4)
     ax.legend(handles=[plt.Rectangle((0, 0), 1, 1, color=colour[s]) for s in order], labels=order, fontsize=7,
@@ -144,7 +147,7 @@ def main(argv=None):
         print(f"{r['stage']:<14}{r['jobs']:>5}{r['first']:>9.0f}{r['last']:>8.0f}{r['job_s']:>8.0f}{r['share']:>7.1%}")
     occ = occupancy(js)
     idle = sum((a.cores - k) * s for k, s in occ.items() if k < a.cores)
-    print("seconds with k jobs running: " + ", ".join(f"{k}: {occ[k]:.0f}" for k in sorted(occ) if occ[k] > 0))
+    print("seconds with k cores taken by jobs: " + ", ".join(f"{k}: {occ[k]:.0f}" for k in sorted(occ) if occ[k] > 0))
     print(f"idle core-seconds: {idle:.0f} ({idle / (a.cores * span):.1%} of {a.cores} x {span:.0f} s)")
     if a.png:
         samples = None

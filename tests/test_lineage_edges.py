@@ -282,3 +282,15 @@ def test_policy_labels_and_may_feed():
     assert policy.may_feed("delay_sweep", "check_separation", {})  # bookkeeping reads everything
     assert policy.may_feed("delay_sweep", "validate_shard", {})  # where a shard's recordings enter
     assert policy.may_feed("no_policy_row", "dynamics_train", {})  # judged by its split roles
+
+
+@pytest.mark.parametrize("switches", [{}, {"policy": {"batch_runs": True}}, {"dynamics": {"seeds_in_one_job": False}}])
+def test_every_rule_of_every_schedule_is_named_by_the_policy(switches):
+    """The separation proof refuses a rule the policy does not name, so each rule a config switch
+    brings in (the searches in lockstep, a job per GRU seed) must be named, or a run with it fails."""
+    from pathlib import Path
+
+    from embodied_snap.lineage.dag import rule_table
+
+    table = rule_table(Path(__file__).resolve().parents[1], config_overrides={"budget": "smoke", **switches})
+    assert set(table) - policy.named_rules() == set()

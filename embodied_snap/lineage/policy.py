@@ -41,7 +41,9 @@ CHAR_REPORTS = ("table_characterize_claims", "fig_limits", "fig_snap", "twin_val
 # The GRU seeds: a job each, or all in one (config dynamics.seeds_in_one_job).
 DYN_TRAIN = ("dynamics_train", "dynamics_train_seeds")
 DYN_REPORTS = ("table_dynamics_claims", "fig_gates", "figures", LEDGER)
-POLICY_RUNS = ("policy_search", "policy_evaluate", "policy_fixed", "policy_summary")
+# The searches: a job per run, or every run in one (config policy.batch_runs).
+POLICY_SEARCH = ("policy_search", "policy_search_lockstep")
+POLICY_RUNS = (*POLICY_SEARCH, "policy_evaluate", "policy_fixed", "policy_summary")
 # Fig. 1 shows the selected policy's commands for one evaluation target.
 POLICY_REPORTS = ("fig_benchmark", "table_policy_claims", "figures", "fig_system", LEDGER)
 # The release-rule ablation (paper V-A, V-B, Fig. 6): everything after the offset fit, and the fit.
@@ -129,7 +131,7 @@ POLICY: dict[str, Source] = {
         (*POLICY_RUNS, *POLICY_REPORTS, *ABLATION_RUNS, *ROBUSTNESS, *SENSITIVITY, "landscape_summary",
          *DEPLOY_RULES),
         "the selection targets select policies and the fixed primitive (and so the deployed policy), nothing else",
-        readers=("policy_search", "policy_fixed", "robustness_search_longer", "sensitivity_search",
+        readers=(*POLICY_SEARCH, "policy_fixed", "robustness_search_longer", "sensitivity_search",
                  "check_separation")),
     "results/policy/targets_evaluation.parquet": Source(
         ("policy_evaluate", "policy_fixed", "policy_summary", *POLICY_REPORTS, "ablation_bend", "ablation_perturb",
