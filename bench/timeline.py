@@ -8,8 +8,8 @@ A job starts at the time stamp above its `rule`/`checkpoint` block and ends at t
 that defines the rule. Prints, per stage: jobs, the first start and last end (s from the run's
 start), the job-seconds, and their share of all job-seconds; then the seconds during which the
 running jobs' threads took fewer cores than there are while work remained. --png draws one lane per
-core, each job a bar on as many lanes as its threads, coloured by stage; --samples (t_s, load1 columns, e.g. from a sampler beside the run) adds the load
-average under it.
+core, each job a bar on as many lanes as its threads, coloured by stage; --samples (t_s, load1
+columns, e.g. from a sampler beside the run) adds the load average under it.
 """
 
 from __future__ import annotations
