@@ -88,6 +88,10 @@ cleanup() {
     # A namespace goes once its last process has: the daemons are stopped first.
     for n in "${NODE_NAMES[@]}"; do ip netns del "$n" 2>/dev/null || true; done
     ip link del "$BRIDGE" 2>/dev/null || true
+    # A veth pair goes with its namespace, but the kernel removes it a moment later (a check at
+    # once once saw two still there): delete the host ends, and give the kernel up to 5 s.
+    for n in $(ip -o link show | grep -o 'esnap[a-z0-9]*' | sort -u); do ip link del "$n" 2>/dev/null || true; done
+    for _ in $(seq 50); do ip -o link show | grep -q 'esnap' || break; sleep 0.1; done
     [ "$(readlink /etc/slurm/slurm.conf 2>/dev/null)" = "$W/slurm.conf" ] && rm -f /etc/slurm/slurm.conf
     # Nothing this test made may outlive it: daemons, namespaces, the bridge and its links.
     for f in "$W"/slurmd.*.pid "$W/slurmctld.pid" "$W/munged.pid"; do
