@@ -161,14 +161,13 @@ def _train_forked(seed: int) -> tuple[Dynamics, list[dict]]:
     return train(a["Wtr"], a["Wva"], seed, log=lambda r: a["log"](seed, r), **a["kw"])
 
 
-def train_seeds(Wtr: dict, Wva: dict, seeds: list[int], *, threads: int = 1, log=None,
+def train_seeds(Wtr: dict, Wva: dict, seeds: list[int], *, log, threads: int = 1,
                 **kw) -> list[tuple[Dynamics, list[dict]]]:
     """train() for each seed, all at once: one forked process per seed with `threads` torch threads
     (config dynamics.seeds_in_one_job). Three seeds on two cores then end together, where three
     one-core jobs leave a core idle while the third trains alone (docs/benchmarks.md). Each seed's
     model is the one train() gives it alone. On a GPU (or with one seed) they train in turn, in this
     process: CUDA does not survive a fork. `log(seed, row)` gets each epoch's row."""
-    log = log or (lambda seed, r: print(f"seed {seed}: {r}", flush=True))
     if kw.get("device", "cpu") != "cpu" or len(seeds) == 1:
         torch.set_num_threads(threads)
         return [train(Wtr, Wva, s, log=lambda r, s=s: log(s, r), **kw) for s in seeds]

@@ -129,8 +129,7 @@ def simulate_group(
         session=session,
         recorded_at=_recorded_at(gid, session),
         source="twin",
-        base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
-        axis=MC.base_axis(sess["base_quat"]),
+        **MC.base_meta(sess),
         program={k: (round(v, 4) if isinstance(v, float) else v) for k, v in prog.items()},
         labels=labels,
     )

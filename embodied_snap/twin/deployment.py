@@ -96,8 +96,7 @@ def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, sessio
     attached = ev["sealed"] is not None
     retained = retrieved(mc)
     meta.update(session=session, source="twin", recorded_at=(T0 + _dt.timedelta(seconds=120 * k)).isoformat(),
-                base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
-                axis=MC.base_axis(sess["base_quat"]),
+                **MC.base_meta(sess),
                 target=dict(size_m=[2 * h for h in BLOCK_HALF], face="+z"))
     meta["labels"].update(attached=bool(attached), retrieved=bool(retained),
                           snap_speed_event=bool(vtip.max() >= speed_mps))

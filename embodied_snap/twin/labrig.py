@@ -82,8 +82,7 @@ def record(st: Stepper, target: dict | None, sess: dict, r: np.random.Generator,
     mc = MC.mocap_frame(trial, calib, target, r)
     return dict(mocap=mc, attached=attached, retrieved=retrieved,
                 t_attach=None if ev["sealed"] is None else float(ev["sealed"]),
-                base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
-                axis=MC.base_axis(sess["base_quat"]),
+                **MC.base_meta(sess),
                 snap_speed_event=bool(vtip.max() >= speed_mps), events=dict(ev))
 
 

@@ -31,11 +31,13 @@ def _resample(t_step, x, t_out):
     return x[idx] * (1 - a) + x[idx + 1] * a
 
 
-def base_axis(base_quat) -> list[float]:
-    """The base's -y (the arm hangs along it) in the lab, unit: meta.json's `axis`. Elementwise,
-    as the recordings are, so its last bits are the same on every CPU (a BLAS product's were not)."""
-    a = mat_apply(quat_to_mat(np.asarray(base_quat, float)), [0.0, -1.0, 0.0])
-    return [float(x) for x in a / norm3(a)]
+def base_meta(sess: dict) -> dict:
+    """meta.json's `base` (the session's mount pose in the lab) and `axis` (the base's -y, along
+    which the arm hangs, unit). Elementwise, as the recordings are, so its last bits are the same
+    on every CPU (a BLAS product's were not)."""
+    a = mat_apply(quat_to_mat(np.asarray(sess["base_quat"], float)), [0.0, -1.0, 0.0])
+    return dict(base=dict(pos=[float(x) for x in sess["base_pos"]], quat=[float(x) for x in sess["base_quat"]]),
+                axis=[float(x) for x in a / norm3(a)])
 
 
 def _to_lab(p, R, B):
