@@ -7,8 +7,9 @@
 It plans; it is no scheduler. From the run's log (bench/timeline.py) each job's rule, wildcards,
 inputs, outputs, priority and threads; its time is its benchmark file's wall time (`s`) where it has
 one, else the log's (whole seconds). A job waits for the jobs that wrote its inputs: a declared output,
-a file under a declared output folder, or a recording an acquisition checkpoint wrote (its
-`results/twin/acquired/<shard>.json` lists the groups). The profile's `groups` join connected jobs of
+a file under a declared output folder, or, in the log of a run from before the acquisition became a
+rule per shard, a recording an acquisition checkpoint wrote (its `results/twin/acquired/<shard>.json`
+lists the groups). The profile's `groups` join connected jobs of
 one group into one cluster job (their times summed, their threads the largest), as Snakemake submits
 them. `--overhead-s` is added to every cluster job (submission and status polling).
 
@@ -47,7 +48,7 @@ def producers(js: list[dict], root: Path) -> dict[str, int]:
         for f in j["output"]:
             made[f.rstrip("/")] = i
             p = root / f
-            if f.startswith("results/twin/acquired/") and p.exists():  # a checkpoint's recordings
+            if f.startswith("results/twin/acquired/") and p.exists():  # an older run's checkpoint recordings
                 for g in json.loads(p.read_text()).get("groups", []):
                     made[f"raw_data/groups/{g['group_id']}"] = i
     return made

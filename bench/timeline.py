@@ -20,18 +20,22 @@ import re
 from collections import Counter, defaultdict
 from pathlib import Path
 
+from embodied_snap.lineage.records import instance
+
 ROOT = Path(__file__).resolve().parent.parent
 STAMP = re.compile(r"^\[(\w{3} \w{3} +\d+ [\d:]+ \d{4})\]$")
-START = re.compile(r"^(?:local)?(?:rule|checkpoint) (\w+):$")
+START = re.compile(r"^(?:local)?(?:rule|checkpoint) ([\w-]+):$")
 
 
 def stages(root: Path = ROOT) -> dict[str, str]:
     """rule -> the rules/<stage>.smk defining it (the Snakefile's own rules: 'Snakefile')."""
     out = {}
     for f in [root / "Snakefile", *sorted((root / "rules").glob("*.smk"))]:
-        # `rule X:`, `checkpoint X:`, and a reuse `use rule Y as X with:` (rules/robustness.smk)
-        for m in re.finditer(r"^\s*(?:rule|checkpoint|use rule \w+ as) (\w+)(?::| with:)", f.read_text(), re.M):
-            out[m.group(1)] = f.stem
+        # `rule X:`, `checkpoint X:`, a reuse `use rule Y as X with:` (rules/robustness.smk), and a
+        # rule per shard named `per_shard_name("X", shard)` (rules/acquire.smk)
+        pattern = r'^\s*(?:(?:rule|checkpoint|use rule \w+ as) (\w+)(?::| with:)|per_shard_name\("(\w+)")'
+        for m in re.finditer(pattern, f.read_text(), re.M):
+            out[m.group(1) or m.group(2)] = f.stem
     return out
 
 
@@ -43,8 +47,9 @@ def jobs(log: str | Path) -> list[dict]:
         if m := STAMP.match(line):
             ts = dt.datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y")
         elif m := START.match(line):
-            block = dict(rule=m.group(1), wildcards="", input=[], output=[], priority=0, threads=1, benchmark=None,
-                         start=ts)
+            rule, wc = instance(m.group(1), {})
+            block = dict(rule=rule, wildcards=",".join(f"{k}={v}" for k, v in wc.items()), input=[], output=[],
+                         priority=0, threads=1, benchmark=None, start=ts)
         elif block and (m := re.match(r"^\s+wildcards: (.*)$", line)):
             block["wildcards"] = m.group(1)
         elif block and (m := re.match(r"^\s+(input|output): (.*)$", line)):

@@ -307,13 +307,16 @@ def cmd_prov(a) -> int:
 
 def cmd_resources(a) -> int:
     from .lineage.dag import rule_table
+    from .lineage.records import instance
     from .resources import ResourceError, render, set_resources, updated_profile
 
     _dir(a.root, "--root")
     _dir(a.benchmarks, "--benchmarks")
     _file(a.profile, "--profile")
     try:
-        res, missing = set_resources(a.benchmarks, rule_table(a.root))
+        table = rule_table(a.root)
+        per_shard = {r for r in table if instance(r, {})[0] != r}  # names that follow the budget's shards
+        res, missing = set_resources(a.benchmarks, table, per_shard)
     except ResourceError as e:
         print(f"error: {e}", file=sys.stderr)
         return 1

@@ -11,7 +11,9 @@ follow the code after a change: rerun the paper budget, rerun the command, commi
 - cpus_per_task: the rule's `threads:` (read from the workflow, never typed), so SLURM gives a job
   the cores its torch/BLAS threads use.
 
-Rules without a benchmark are tiny bookkeeping jobs: the profile's `default-resources` cover them.
+Rules without a benchmark are tiny bookkeeping jobs: the profile's `default-resources` cover them,
+and so they cover the rules written once per shard (the acquisition, seconds a shard): their names
+follow a budget's shards, which the profile cannot list.
 A benchmarked rule the run did not execute (a stage added since, or a target outside `all`) is
 listed in the profile as not measured and gets the default too, until a run measures it.
 """
@@ -74,11 +76,15 @@ def rule_resources(secs: float, rss_mb: float, threads: int) -> dict[str, int]:
     return dict(mem_mb=int(mem), runtime=int(runtime), cpus_per_task=int(threads))
 
 
-def set_resources(bench_dir: str | Path, table: dict[str, dict]) -> tuple[dict[str, dict[str, int]], list[str]]:
+def set_resources(bench_dir: str | Path, table: dict[str, dict], per_shard=frozenset()
+                  ) -> tuple[dict[str, dict[str, int]], list[str]]:
     """({rule: {mem_mb, runtime, cpus_per_task}}, [benchmarked rules not measured]) for the
-    benchmarked rules of `table` (lineage.dag.rule_table: each rule's benchmark regex and threads)."""
+    benchmarked rules of `table` (lineage.dag.rule_table: each rule's benchmark regex and threads);
+    the rules `per_shard` get default-resources (above), their benchmarks matched but not read."""
     patterns = {r: t["benchmark"] for r, t in table.items() if t.get("benchmark")}
     measured, missing = measure(bench_dir, patterns)
+    measured = {r: v for r, v in measured.items() if r not in per_shard}
+    missing = [r for r in missing if r not in per_shard]
     out = {}
     for r in sorted(measured):
         threads = table[r].get("threads")

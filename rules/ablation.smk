@@ -95,7 +95,7 @@ rule ablation_bend:
         runs=SHARED_RUNS,
         evaluation=f"{POL}/targets_evaluation.parquet",
         shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
-        metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
+        metas=metas_of(**HOLD),
         code=imports("ablation_bend"),
     output:
         bend=f"{ABL}/bend.json",

@@ -3,26 +3,36 @@
 # overwrites them; a changed recording reruns only what reads it.
 
 
-checkpoint twin_acquire:
-    input:
-        code=imports("twin_acquire"),
-    output:
-        "results/twin/acquired/{shard}.json",
-    log:
-        "logs/twin_acquire/{shard}.log",
-    benchmark:
-        "benchmarks/twin_acquire/{shard}.tsv"
-    conda:
-        "../envs/esnap.yaml"
-    params:
-        groups=lambda wc: select(shard=wc.shard).to_dict("records"),
-        raw=RAW,
-        seed=config["seed"],
-        protocol=protocol_params(*protocol.ACQUISITION),
-        dt=config["twin"]["dt"],
-        hold=config["twin"]["held_base"],
-    script:
-        "../workflow_scripts/twin_acquire.py"
+# A rule per shard: the plan names each shard's groups before anything runs, so its recordings
+# are the rule's declared outputs and every job that reads one waits on exactly that rule
+# (docs/benchmarks.md, "Recordings as outputs"). The lineage reads each as the job
+# twin_acquire(shard=...).
+for shard, gids in SHARDS.items():
+
+    rule:
+        name:
+            per_shard_name("twin_acquire", shard)
+        input:
+            code=imports("twin_acquire"),
+        output:
+            recordings=group_files(gids),
+            acquired=f"results/twin/acquired/{shard}.json",
+        log:
+            f"logs/twin_acquire/{shard}.log",
+        benchmark:
+            f"benchmarks/twin_acquire/{shard}.tsv"
+        conda:
+            "../envs/esnap.yaml"
+        params:
+            groups=select(shard=shard).to_dict("records"),
+            # <raw>/groups/<group>/<file> -> <raw>, read off the outputs (snakemake --lint)
+            raw=lambda wc, output: str(Path(output.recordings[0]).parents[2]),
+            seed=config["seed"],
+            protocol=protocol_params(*protocol.ACQUISITION),
+            dt=config["twin"]["dt"],
+            hold=config["twin"]["held_base"],
+        script:
+            "../workflow_scripts/twin_acquire.py"
 
 
 rule twin_index:
@@ -76,7 +86,7 @@ rule twin_phenomena:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         protocol=protocol_params("sampling", "primitive", "rig", "thresholds"),
         groups=select(evidence_set=PHENOMENA_SETS)[
             ["group_id", "evidence_set", "category", "session"]

@@ -28,7 +28,7 @@ rule characterize_kinematics:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=CAL_GROUPS,
         quantile=config["characterize"]["envelope_quantile"],
         tendon_radius_m=config["rig"]["tendon_radius_m"],
@@ -54,7 +54,7 @@ rule characterize_servo:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=CAL_GROUPS,
         protocol=protocol_params("rig"),
     script:
@@ -78,7 +78,7 @@ rule characterize_release:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=select(evidence_set="release_mode")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
@@ -103,7 +103,7 @@ rule characterize_attachment:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=select(evidence_set="attachment")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
@@ -129,7 +129,7 @@ rule characterize_snap:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=select(**SNAP_GROUPS)[["group_id", "category", "session"]].to_dict(
             "records"
         ),
@@ -152,7 +152,7 @@ rule characterize_delay_sweep:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=select(evidence_set="delay_sweep")[
             ["group_id", "category", "session"]
         ].to_dict("records"),
@@ -178,7 +178,7 @@ rule characterize_heldbase:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=HELD_GROUPS,
         detectors=config["characterize"]["heldbase"],
         protocol=protocol_params("sampling", "thresholds"),

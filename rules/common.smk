@@ -1,5 +1,4 @@
 # Shared by every stage: the group plan, shards, and where a group's files live.
-import functools
 import glob
 import os
 import re
@@ -14,17 +13,21 @@ from pathlib import Path
 from embodied_snap import budget, protocol, runconfig
 from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
-from embodied_snap.lineage.dag import STATIC_DAG_ENV
 from embodied_snap.lineage.groups import deployment_dir
 from embodied_snap.lineage.imports import code_inputs
+from embodied_snap.lineage.records import per_shard_name
 from embodied_snap.paper.sections import category as category_of
 from embodied_snap.plan import PlanError
 from embodied_snap.policy.evaluations import evaluations, training_targets
-from embodied_snap.rawformat import RecordingError, group_dir, group_paths
+from embodied_snap.rawformat import RecordingError, group_paths
+from embodied_snap.scheduling import local_runs_without_rate_limit
 from embodied_snap.verdicts import gate_tree
 
+# A local run's scheduler without Snakemake's job rate limit, whose timers made the scheduler's own
+# CPU grow with every finished job (embodied_snap/scheduling.py).
+local_runs_without_rate_limit()
+
 RAW = config["raw_data"]["dir"]
-STATIC_DAG = os.environ.get(STATIC_DAG_ENV) == "1"
 BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
 
@@ -62,8 +65,8 @@ def _acquired(shard):
 # job runs, so nothing under results/ changes until the user fixes the file or excludes the
 # group (--config raw_data='{exclude: [id]}'). It is `esnap validate`'s function with the same
 # inputs, with either rig: every recording already on disk is judged now, against its index.csv
-# row once index.csv exists; with the simulated rig, a shard recorded during this run is judged
-# when its acquisition checkpoint completes (shard_raw, raw_of).
+# row once index.csv exists; with the simulated rig, a shard recorded during this run is judged by
+# its validate_shard job before any job reads it (validated).
 try:
     PLAN, GATE = gate_tree(
         config, RAW, ".snakemake/esnap/gate.json", recorded=_acquired
@@ -80,19 +83,11 @@ ROLE_SHARDS = {
 }
 
 
-def gate(gids):
-    """The gate's verdict on these groups; a rejection stops the run with one line."""
-    try:
-        GATE.check(gids)
-    except RecordingError as e:
-        raise WorkflowError(f"error: {e}") from None
-
-
 def reads_recordings(wildcards, input):
     """Priority of a job: 1 if it reads recordings. Such a job has hundreds of inputs, and Snakemake
-    9.27 re-examines the inputs of every waiting job about once a second per finished job, so
-    none may wait behind the long light jobs (GRU training, policy search): docs/benchmarks.md,
-    "Scheduling and the run's critical path"."""
+    re-examines the inputs of every waiting job at each scheduling round, so none may wait behind
+    the long light jobs (GRU training, policy search): docs/benchmarks.md, "Scheduling and the
+    run's critical path"."""
     return int(any(str(f).startswith(f"{RAW}/") for f in input))
 
 
@@ -107,30 +102,8 @@ def group_files(gids):
     return [str(p) for g in gids for p in group_paths(RAW, g).values()]
 
 
-@functools.cache  # asked only for the static DAG, whose tree does not change while it is parsed
-def recorded(shard):
-    """Whether a shard's recordings are all on disk (its acquisition record exists and every group
-    the plan gives it has its folder)."""
-    return _acquired(shard) and all(group_dir(RAW, g).is_dir() for g in SHARDS[shard])
-
-
-def await_recorded(shards):
-    """With the simulated rig, wait on the acquisition of each shard. The lineage's static DAG
-    (embodied_snap/lineage/dag.py, forceall: every checkpoint counts as still to run) reads a
-    recorded shard's files as they are, so the separation proof sees who reads them; a run keeps
-    the edge, since an edited acquisition rewrites the recordings (docs/benchmarks.md, "The
-    acquisition's checkpoints")."""
-    if TWIN:
-        for s in shards:
-            if not (STATIC_DAG and recorded(s)):
-                checkpoints.twin_acquire.get(shard=s)
-
-
 def shard_raw(wildcards):
-    """A shard's recordings, once the gate passed them; with the simulated rig they exist once
-    its acquisition ran."""
-    await_recorded([wildcards.shard])
-    gate(SHARDS[wildcards.shard])
+    """A shard's recordings (with the simulated rig, its acquisition rule's outputs)."""
     return group_files(SHARDS[wildcards.shard])
 
 
@@ -147,24 +120,27 @@ def select(**where):
 
 
 def raw_of(**where):
-    """Input function: the recordings of the groups matching `where`, e.g.
+    """The recordings of the groups matching `where`, e.g.
     raw_of(evidence_set="dynamics", role="train", category="characterisation").
     Only those groups' files become inputs, so the DAG shows exactly which groups a fit saw.
     """
+    return group_files(select(**where).group_id)
 
-    def files(wildcards):
-        sel = select(**where)
-        await_recorded(sel.shard.unique())
-        gate(sel.group_id)
-        return group_files(sel.group_id)
 
-    return files
+def raw_dir(wildcards, input):
+    """A param: the raw directory, read off the job's first recording (<raw>/groups/<id>/<file>),
+    as `snakemake --lint` asks of a path prefix; it is config raw_data.dir."""
+    return str(Path(input.raw[0]).parents[2])
+
+
+def metas_of(**where):
+    """raw_of, the meta.json files alone."""
+    return [f for f in raw_of(**where) if f.endswith("meta.json")]
 
 
 def ancient_raw_of(**where):
     """raw_of, marked ancient: for a record that must not follow the files' times."""
-    files = raw_of(**where)
-    return lambda wildcards: [ancient(f) for f in files(wildcards)]
+    return [ancient(f) for f in raw_of(**where)]
 
 
 def validated(**where):

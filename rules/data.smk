@@ -77,7 +77,7 @@ rule resample_shard:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         groups=lambda wc: SHARDS[wc.shard],
         protocol=protocol_params("sampling"),
     script:

@@ -131,7 +131,7 @@ rule dynamics_gate:
     input:
         models=DMODELS,
         shards=expand("results/data/50hz/{shard}.parquet", shard=SWEEP_SHARDS),
-        metas=lambda wc: [f for f in raw_of(**SWEEP)(wc) if f.endswith("meta.json")],
+        metas=metas_of(**SWEEP),
         code=imports("dynamics_gate"),
     output:
         f"{DYN}/gate.json",
@@ -153,7 +153,7 @@ rule dynamics_hold:
     bearing; leave-one-session-out hold errors."""
     input:
         shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
-        metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
+        metas=metas_of(**HOLD),
         code=imports("dynamics_hold"),
     output:
         bank=f"{DYN}/hold_bank.npz",

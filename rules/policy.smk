@@ -15,7 +15,7 @@ rule policy_workspace:
     """Strike cloud, strike-bearing offset and directional workspace of the training groups."""
     input:
         shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
-        metas=lambda wc: [f for f in raw_of(**HOLD)(wc) if f.endswith("meta.json")],
+        metas=metas_of(**HOLD),
         bank=f"{DYN}/hold_bank.npz",
         code=imports("policy_workspace"),
     output:

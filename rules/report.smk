@@ -72,7 +72,7 @@ rule fig_system:
     conda:
         "../envs/esnap.yaml"
     params:
-        raw=RAW,
+        raw=raw_dir,
         group=FIG1_GROUP,
         protocol=protocol_params("sampling"),
     script:

@@ -8,6 +8,7 @@ statements and reads `sys.modules`.
 from __future__ import annotations
 
 import ast
+import json
 from pathlib import Path
 
 import pytest
@@ -71,3 +72,29 @@ def test_relative_and_from_imports(tmp_path):
     assert imports.code_inputs("workflow_scripts/s.py", tmp_path) == [
         "embodied_snap/a.py", "embodied_snap/b.py", "embodied_snap/sub/__init__.py", "embodied_snap/sub/c.py",
         "embodied_snap/sub/d.py"]
+
+
+def test_the_saved_scan_follows_every_source(tmp_path):
+    """The scan is saved (imports.CACHE) and read back by the next parse while no source changed; an
+    edited module is scanned again, so its new import reaches the rules at once."""
+    pkg = tmp_path / "embodied_snap"
+    pkg.mkdir()
+    for f in ("__init__.py", "a.py", "b.py"):
+        (pkg / f).write_text("")
+    (tmp_path / "workflow_scripts").mkdir()
+    (tmp_path / "workflow_scripts/s.py").write_text("from embodied_snap import a\n")
+
+    def parse():  # a new process: the scan kept in memory is gone
+        for f in (imports._scanned, imports._closure, imports._imported):
+            f.cache_clear()
+        return imports.code_inputs("workflow_scripts/s.py", tmp_path)
+
+    assert parse() == ["embodied_snap/a.py"]
+    saved = json.loads((tmp_path / imports.CACHE).read_text())
+    assert saved["scripts"] == {"workflow_scripts/s.py": ["embodied_snap.a"]}
+    # read back, not scanned: a changed saved entry is what the next parse gives
+    saved["scripts"]["workflow_scripts/s.py"] = []
+    (tmp_path / imports.CACHE).write_text(json.dumps(saved))
+    assert parse() == []
+    (pkg / "a.py").write_text("from . import b\n")
+    assert parse() == ["embodied_snap/a.py", "embodied_snap/b.py"]

@@ -21,7 +21,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from embodied_snap.lineage.dag import rule_table
+from embodied_snap.lineage.dag import build_dag, rule_table
+from embodied_snap.lineage.records import instance
 
 from importprobe import loaded_by_scripts
 
@@ -51,10 +52,10 @@ def dry_jobs(cwd, *targets) -> list[tuple[str, str]]:
     out = snakemake(cwd, "-n", *targets).stdout
     jobs, rule = [], None
     for line in out.splitlines():
-        m = re.match(r"^(?:rule|checkpoint) (\w+):", line.strip())
+        m = re.match(r"^(?:rule|checkpoint) ([\w-]+):", line.strip())
         if m:
-            rule = m.group(1)
-            jobs.append([rule, ""])
+            rule, wc = instance(m.group(1), {})
+            jobs.append([rule, ",".join(f"{k}={v}" for k, v in wc.items())])
         m = re.match(r"^wildcards: (.*)$", line.strip())
         if m and jobs:
             jobs[-1][1] = m.group(1)
@@ -90,6 +91,37 @@ def test_fresh_run_builds_figures_and_lineage(wf):
     # the sealed set, recorded beside the recordings when first split
     rec = json.loads((wf / "raw_data/sealed.json").read_text())["groups"]
     assert sorted(rec) == sorted(split[split.role == "sealed"].group_id)
+
+
+def test_every_job_reading_recordings_waits_for_their_validation(wf):
+    """With the simulated rig the recordings are written during the run, by a rule per shard: every
+    job that reads one starts only after its shard's validate_shard job, the gate's checks (directly
+    or through a job that depends on it; docs/data.md, "The gate")."""
+    nodes = build_dag(wf, config_overrides={"budget": "smoke"}, targets=("all", "robustness"))
+    raw = "raw_data/groups/"
+    checked_by = {f: i for i, n in enumerate(nodes) if n["rule"] == "validate_shard"
+                  for f in n["input"] if f.startswith(raw)}
+    up: dict[int, set[int]] = {}
+    for i, n in enumerate(nodes):
+        for k in n["down"]:
+            up.setdefault(k, set()).add(i)
+
+    def before(i):
+        seen, todo = set(), [i]
+        while todo:
+            for k in up.get(todo.pop(), ()):
+                if k not in seen:
+                    seen.add(k)
+                    todo.append(k)
+        return seen
+
+    # the checks themselves: a shard's, and the sealed set's against its record
+    readers = [i for i, n in enumerate(nodes) if n["rule"] not in {"validate_shard", "validate_sealed"}
+               and any(f.startswith(raw) for f in n["input"])]
+    assert {nodes[i]["rule"] for i in readers} >= {"resample_shard", "twin_phenomena", "dynamics_hold"}
+    early = sorted({(nodes[i]["rule"], f.split("/")[2]) for i in readers for f in nodes[i]["input"]
+                    if f.startswith(raw) and checked_by[f] not in before(i)})
+    assert early == []
 
 
 def test_runs_searched_in_lockstep_keep_the_claims_inside_the_seed_spread(wf, tmp_path):
@@ -285,9 +317,10 @@ def dry_reasons(cwd, *targets) -> dict[tuple[str, str], str]:
     jobs, key = {}, None
     for line in out.splitlines():
         line = line.strip()
-        m = re.match(r"^(?:local)?(?:rule|checkpoint) (\w+):", line)
+        m = re.match(r"^(?:local)?(?:rule|checkpoint) ([\w-]+):", line)
         if m:
-            key = [m.group(1), ""]
+            rule, wc = instance(m.group(1), {})
+            key = [rule, ",".join(f"{k}={v}" for k, v in wc.items())]
         elif key and line.startswith("wildcards: "):
             key[1] = line.removeprefix("wildcards: ")
         elif key and line.startswith("reason: "):
@@ -310,7 +343,8 @@ def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, mod
     from timeline import jobs as logged
 
     ran = {j["rule"] for log in (wf / ".snakemake/log").glob("*.snakemake.log") for j in logged(log)}
-    expected = {r for r, d in table.items() if d["script"] and module in loads[d["script"]] and r in ran}
+    # a rule per shard (twin_acquire_<shard>) counts as its rule, as the log's jobs do
+    expected = {instance(r, {})[0] for r, d in table.items() if d["script"] and module in loads[d["script"]]} & ran
     assert expected
     m = wf / module
     keep, st = m.read_bytes(), m.stat()
@@ -323,12 +357,9 @@ def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, mod
     edited = {rule for (rule, _), why in jobs.items() if "Updated input files:" in why and module in why}
     listed = {rule for rule, _ in jobs}
     if "twin_acquire" in expected:
-        # The edit reruns the acquisition checkpoints. Every job downstream of a rebuilt shard then
-        # reports only that reason, so each rule that loads the module reruns, directly or so;
-        # twin_index waits on the checkpoints' own outputs and validate_index on the index.csv
-        # twin_index rewrites: Snakemake resolves those two only after the checkpoints ran.
-        assert "twin_acquire" in edited and edited <= expected
-        assert expected - listed <= {"twin_index", "validate_index"}
+        # The edit reruns the acquisition, so every job downstream of a shard reruns and Snakemake
+        # gives it that reason alone: each rule that loads the module reruns, for the edit or so.
+        assert "twin_acquire" in edited and edited <= expected <= listed
     else:
         assert edited == expected
     others = {k: why for k, why in jobs.items() if k[0] not in expected}

@@ -1,4 +1,5 @@
-"""Prove docs/design.md section 3 on the DAG and on the records; fail the workflow on any leak.
+"""Prove docs/design.md section 3 on the records, beside the DAG's proof (check_separation_dag);
+fail the workflow on any leak.
 Missing records are not reported here (jobs beside this one may be rebuilding theirs right now);
 `esnap check-separation` after the run does."""
 
@@ -6,6 +7,7 @@ from embodied_snap.lineage import records  # noqa: F401 -- first, so every read 
 
 # isort: split
 
+import json
 import sys
 
 from embodied_snap.lineage.checks import check
@@ -14,7 +16,9 @@ from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
-    result = check(".", config_overrides=snakemake.params.config, complete=False)
+    with open(snakemake.input.dag) as f:
+        dag = json.load(f)
+    result = check(".", config_overrides=snakemake.params.config, complete=False, dag=dag)
     for v in result["violations"]:
         print(f"leak: {v}", file=sys.stderr)
     if not result["ok"]:

@@ -8,21 +8,22 @@ from embodied_snap.lineage import records  # noqa: F401 -- first, so every read 
 
 import os
 import sys
+from pathlib import Path
 
 import pandas as pd
 
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import group_paths, write_json
+from embodied_snap.rawformat import write_json
 from embodied_snap.twin.acquire import acquire_groups
 
 sys.stderr = open(snakemake.log[0], "w")
-with tracked(snakemake) as recordings:
+with tracked(snakemake):
     p = snakemake.params
     rows = acquire_groups(
         pd.DataFrame(p.groups), p.raw, seed=p.seed, proto=from_params(p.protocol), dt=p.dt, hold=p.hold
     )
-    recordings += [str(f) for r in rows for f in group_paths(p.raw, r["group_id"]).values()]
-    for f in recordings:
+    for f in snakemake.output.recordings:
         os.chmod(f, 0o444)
-    write_json({"shard": snakemake.wildcards.shard, "groups": rows}, snakemake.output[0])
+    # the shard names its record (results/twin/acquired/<shard>.json)
+    write_json({"shard": Path(snakemake.output.acquired).stem, "groups": rows}, snakemake.output.acquired)

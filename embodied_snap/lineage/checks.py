@@ -414,27 +414,42 @@ def check_dag(workdir=".", configfiles=None, config_overrides: dict | None = Non
     return dag_violations(build_dag(workdir, configfiles, config_overrides, targets), load_groups(workdir, raw), raw)[0]
 
 
+def static_proof(root=".", config_overrides: dict | None = None, **dag_kwargs) -> dict:
+    """The proof on the Snakemake DAG, for the config `config_overrides` (default: the one the last
+    run recorded): {violations, checked, uses}. A DAG that cannot be built is a failed proof, not a
+    pass."""
+    root = Path(root)
+    cfg = config_overrides if config_overrides is not None else (last_config(root) or {})
+    raw = raw_dir_of(cfg)
+    uses = {}
+    try:
+        wd = dag_kwargs.pop("workdir", root)
+        nodes, groups = build_dag(wd, config_overrides=cfg, **dag_kwargs), load_groups(wd, raw)
+        v, c = dag_violations(nodes, groups, raw)
+        uses = dag_uses(nodes, groups, raw)
+    except Exception as e:  # noqa: BLE001 -- any failure to build the DAG means no proof
+        v, c = [f"separation (DAG): could not build the Snakemake DAG: {type(e).__name__}: {e}"], {}
+    return dict(violations=v, checked=c, uses=uses)
+
+
 def check(
-    root=".", static=True, records=True, config_overrides: dict | None = None, complete: bool = True, **dag_kwargs
+    root=".", static=True, records=True, config_overrides: dict | None = None, complete: bool = True,
+    dag: dict | None = None, **dag_kwargs
 ) -> dict:
-    """Both proofs, for the config `config_overrides` (default: the one the last run recorded);
-    a DAG that cannot be built is a failed proof, not a pass. `complete`: the run has finished, so
-    every result file and every result a record used must have a record of its own (off inside the
-    workflow, where jobs beside the check are still rebuilding theirs)."""
+    """Both proofs, for the config `config_overrides` (default: the one the last run recorded).
+    `dag`: the DAG's proof already made (static_proof; the workflow's check_separation_dag job),
+    else it is made here. `complete`: the run has finished, so every result file and every result a
+    record used must have a record of its own (off inside the workflow, where jobs beside the check
+    are still rebuilding theirs)."""
     root = Path(root)
     cfg = config_overrides if config_overrides is not None else (last_config(root) or {})
     raw = raw_dir_of(cfg)
     violations, checked, uses = [], {}, {}
     if static:
-        try:
-            wd = dag_kwargs.pop("workdir", root)
-            nodes, groups = build_dag(wd, config_overrides=cfg, **dag_kwargs), load_groups(wd, raw)
-            v, c = dag_violations(nodes, groups, raw)
-            uses = dag_uses(nodes, groups, raw)
-        except Exception as e:  # noqa: BLE001 -- any failure to build the DAG means no proof
-            v, c = [f"separation (DAG): could not build the Snakemake DAG: {type(e).__name__}: {e}"], {}
-        violations += v
-        checked.update(c)
+        s = dag if dag is not None else static_proof(root, cfg, **dag_kwargs)
+        violations += s["violations"]
+        checked.update(s["checked"])
+        uses = s["uses"]
     if records:
         v, c = _records_check(root, raw, complete)
         violations += v

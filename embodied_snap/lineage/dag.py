@@ -13,15 +13,11 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
+from .records import instance
+
 
 def _norm(p) -> str:
     return os.path.normpath(str(p)).replace(os.sep, "/")
-
-
-# Set while the workflow is parsed here: rules/common.smk then reads recordings already on disk
-# as plain files rather than through their acquisition checkpoint, which a forceall DAG counts as
-# still to run (the separation proof must see every job that reads them).
-STATIC_DAG_ENV = "ESNAP_STATIC_DAG"
 
 
 @contextmanager
@@ -33,8 +29,6 @@ def _workflow(workdir, configfiles, config_overrides):
 
     cwd = os.getcwd()
     workdir = Path(workdir).resolve()
-    before = os.environ.get(STATIC_DAG_ENV)
-    os.environ[STATIC_DAG_ENV] = "1"
     try:
         out = OutputSettings(quiet={Quietness.ALL}, enable_file_logging=False)
         with SnakemakeApi(out) as api:
@@ -48,10 +42,6 @@ def _workflow(workdir, configfiles, config_overrides):
             yield wf_api
     finally:
         os.chdir(cwd)
-        if before is None:
-            os.environ.pop(STATIC_DAG_ENV, None)
-        else:
-            os.environ[STATIC_DAG_ENV] = before
 
 
 def _plain(res):
@@ -114,9 +104,11 @@ def _build(workdir, configfiles, config_overrides, targets, DAGSettings) -> list
         dag = wf.dag
         jobs = list(dag.jobs)
         idx = {j: i for i, j in enumerate(jobs)}
-        nodes = [dict(rule=j.rule.name, wildcards={k: str(v) for k, v in j.wildcards.items()},
-                      input=[_norm(f) for f in j.input], output=[_norm(f) for f in j.output],
-                      down=[]) for j in jobs]
+        nodes = []
+        for j in jobs:
+            rule, wildcards = instance(j.rule.name, {k: str(v) for k, v in j.wildcards.items()})
+            nodes.append(dict(rule=rule, wildcards=wildcards, input=[_norm(f) for f in j.input],
+                              output=[_norm(f) for f in j.output], down=[]))
         for j in jobs:
             for dep in dag.dependencies[j]:
                 nodes[idx[dep]]["down"].append(idx[j])

@@ -17,10 +17,17 @@ declaring it would rerun every job whenever it is edited.
 from __future__ import annotations
 
 import ast
+import hashlib
+import json
 from functools import lru_cache
 from pathlib import Path
 
+from ..files import write_text
+
 PACKAGE = "embodied_snap"
+# Every workflow script's modules, saved with the sizes and times of the sources they were read from:
+# parsing ~200 modules is a fifth of a dry run, and their sources rarely change between two runs.
+CACHE = ".snakemake/esnap-imports.json"  # the same for every budget (not parked by esnap budget)
 # Loaded by every job for its own bookkeeping; never declared (see above).
 EXEMPT = frozenset({PACKAGE, f"{PACKAGE}.files", f"{PACKAGE}.lineage", f"{PACKAGE}.lineage.records"})
 DAG_MODULE = f"{PACKAGE}.lineage.dag"
@@ -101,9 +108,41 @@ def _closure(script: str, root: str) -> frozenset[str]:
     return frozenset(seen)
 
 
+def _sources(root: Path) -> str:
+    """What every scan reads: each source's path, size and modification time, as one key."""
+    files = [*(root / PACKAGE).rglob("*.py"), *(root / "workflow_scripts").glob("*.py"), root / "Snakefile",
+             *(root / "rules").glob("*.smk")]
+    stats = [(f.relative_to(root).as_posix(), st.st_size, st.st_mtime_ns)
+             for f in sorted(files) if f.is_file() for st in [f.stat()]]
+    return hashlib.sha256(json.dumps(stats).encode()).hexdigest()
+
+
+@lru_cache(maxsize=None)
+def _scanned(root: str) -> dict[str, list[str]]:
+    """{workflow_scripts/<name>.py: its modules}: from CACHE while no source changed since it was
+    written, else every script scanned and CACHE written again."""
+    r = Path(root)
+    key = _sources(r)
+    try:
+        saved = json.loads((r / CACHE).read_text())
+        if saved["sources"] == key:
+            return saved["scripts"]
+    except (OSError, ValueError, KeyError, TypeError):
+        pass  # no cache, or an unreadable one: scan
+    scripts = {p.relative_to(r).as_posix(): sorted(_closure(p.relative_to(r).as_posix(), root))
+               for p in sorted((r / "workflow_scripts").glob("*.py"))}
+    try:
+        write_text(r / CACHE, json.dumps({"sources": key, "scripts": scripts}))
+    except OSError:
+        pass  # a read-only checkout scans at every parse
+    return scripts
+
+
 def modules_of(script: str | Path, root: str | Path = ".") -> list[str]:
     """Dotted names of the package modules `script` (a path relative to root) reaches."""
-    return sorted(_closure(str(script), str(Path(root).resolve())))
+    r = str(Path(root).resolve())
+    saved = _scanned(r).get(Path(script).as_posix())
+    return saved if saved is not None else sorted(_closure(str(script), r))
 
 
 def code_inputs(script: str | Path, root: str | Path = ".") -> list[str]:

@@ -18,14 +18,14 @@ from dataclasses import dataclass
 # the raw manifest, which reads every group, would make every group reach everything after it.
 BOOKKEEPING = frozenset({
     "validate_shard", "validate_index", "validate_sealed", "raw_manifest", "twin_index", "split",
-    "check_separation", "prov_export", "fig_data_overview",
+    "check_separation", "check_separation_dag", "prov_export", "fig_data_overview",
     # the paper's build products that read only metadata: Table I (the index, the split and the
     # separation proof), the arm's render (the simulator's model, no recording), the RO-Crate
     "table_evidence", "twin_render", "crate",
 })
 # Jobs whose outputs are statements about the whole run: reports list them as inputs only to run
 # after them, so `esnap audit` lists them in a chain but does not descend into them.
-GATES = frozenset({"check_separation", "prov_export", "crate"})
+GATES = frozenset({"check_separation", "check_separation_dag", "prov_export", "crate"})
 # Rules that only name other targets and write nothing.
 TARGETS = frozenset({"all", "robustness", "sensitivity", "landscape"})
 # Rules whose `shard` wildcard marks a job as reading one shard's groups: where the walk starts.
@@ -103,12 +103,14 @@ POLICY: dict[str, Source] = {
         ("characterize_heldbase", *CHAR_REPORTS),
         "held_base may feed the trigger-detection comparison, never the dynamics model or policies"),
     # Recorded after export (raw_data/deployment/, a tree of its own): a file source read only by
-    # Table II, Fig. 7, the separation proof (which also shows the manifest's inputs unchanged),
+    # Table II, Fig. 7, the separation proof (which also shows the manifest's inputs unchanged; its
+    # DAG half, because the trials' index brings the reports of the trials into the DAG),
     # Table I, which counts the trials, and the ledger, which names each Table II number's trials.
     "deployment": Source(
         DEPLOY_REPORTS,
         "deployment may feed Table II and Fig. 7, nothing upstream of the manifest", held_out=True,
-        readers=("deploy_table", "fig_deployment", "check_separation", "table_evidence", LEDGER)),
+        readers=("deploy_table", "fig_deployment", "check_separation", "check_separation_dag", "table_evidence",
+                 LEDGER)),
     # The dynamics corpus by split role (440 / 78 / 20).
     "train": Source(
         ("windows(role=train)", *DYN_TRAIN, "characterize_snap", "dynamics_hold", "policy_workspace",

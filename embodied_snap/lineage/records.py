@@ -153,6 +153,26 @@ def _flat(nl) -> list[str]:
     return out
 
 
+# Rules the workflow writes once per shard (rules/acquire.smk: the shard's recordings are the
+# declared outputs of a rule of its own, named `<rule>_<shard>`); records, the lineage's DAG and
+# the separation policy read each as one job of the rule with the shard as its wildcard.
+PER_SHARD = ("twin_acquire",)
+
+
+def per_shard_name(rule: str, shard: str) -> str:
+    """The workflow's name of one shard's rule (`instance` reads it back)."""
+    return f"{rule}_{shard}"
+
+
+def instance(rule: str, wildcards: dict) -> tuple[str, dict]:
+    """A job's rule and wildcards as the policy names them: a per-shard rule as the rule with its
+    `shard` wildcard, every other rule as it is."""
+    for r in PER_SHARD:
+        if rule.startswith(r + "_") and not wildcards:
+            return r, {"shard": rule[len(r) + 1:]}
+    return rule, wildcards
+
+
 def record_path(rule: str, wildcards: dict, root: str | Path = ".") -> Path:
     # '/' in a wildcard value would make a subdirectory; escape it.
     name = ",".join(f"{k}={str(v).replace('/', '%2F')}" for k, v in sorted(wildcards.items())) or "_"
@@ -319,7 +339,8 @@ def tracked(smk, root=".", check_modules: bool = True):
     """
     root = Path(root)
     wildcards = {k: str(v) for k, v in _named(getattr(smk, "wildcards", None)).items() if k != "_"}
-    rp = record_path(smk.rule, wildcards, root)
+    rule, wildcards = instance(smk.rule, wildcards)
+    rp = record_path(rule, wildcards, root)
     rp.unlink(missing_ok=True)
     started = _now()
     undeclared: list[str] = []
@@ -336,14 +357,14 @@ def tracked(smk, root=".", check_modules: bool = True):
     own = {_rel(p, root) for p in outputs + log}
     try:
         if check_modules:
-            check_watched(smk.rule)
-        check_declared(smk.rule, inputs + sorted(own), reads, modules, raw_dir_of(config))
+            check_watched(rule)
+        check_declared(rule, inputs + sorted(own), reads, modules, raw_dir_of(config))
     except UndeclaredInput as e:
         sys.exit(f"error: {e}")  # one line, in the job's log
     script = _script_path(root)
     if script and script not in inputs:
         inputs.append(script)
-    write_record(smk.rule, wildcards, inputs, outputs, _named(getattr(smk, "params", None)),
+    write_record(rule, wildcards, inputs, outputs, _named(getattr(smk, "params", None)),
                  started, root, log=log, reads=reads, modules=modules, config=config)
 
 
