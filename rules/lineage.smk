@@ -12,6 +12,7 @@ rule check_separation_dag:
         # the sealed set against its record: read, but no recording's values move the DAG
         sealed_record=ancient(f"{RAW}/{sealed.RECORD}"),
         raw=ancient_raw_of(),
+        valid=ancient(validated()),
         split="results/splits/split.csv",
         deployment_index=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
         code=imports("check_separation_dag"),
@@ -19,6 +20,7 @@ rule check_separation_dag:
         "results/lineage/separation_dag.json",
     log:
         "logs/check_separation_dag.log",
+    priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:

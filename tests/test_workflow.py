@@ -359,7 +359,11 @@ def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, mod
     if "twin_acquire" in expected:
         # The edit reruns the acquisition, so every job downstream of a shard reruns and Snakemake
         # gives it that reason alone: each rule that loads the module reruns, for the edit or so.
-        assert "twin_acquire" in edited and edited <= expected <= listed
+        # Snakemake 9.27 does not look at the own inputs of a job below one that reruns when the
+        # edge between them is ancient (dag.update_needrun masks it): the index, its check and the
+        # sealed set's check rerun in the run after (docs/lineage.md).
+        assert "twin_acquire" in edited and edited <= expected
+        assert expected - listed <= {"twin_index", "validate_index", "validate_sealed"}
     else:
         assert edited == expected
     others = {k: why for k, why in jobs.items() if k[0] not in expected}
