@@ -296,3 +296,16 @@ def test_every_rule_of_every_schedule_is_named_by_the_policy(switches):
     table = rule_table(Path(__file__).resolve().parents[1], config_overrides={"budget": "smoke", **switches})
     # a rule per shard (twin_acquire_<shard>) is named as its rule (records.instance)
     assert {instance(r, {})[0] for r in table} - policy.named_rules() == set()
+
+
+def test_a_rule_per_shard_is_read_as_its_rule_with_the_shard():
+    """rules/acquire.smk names each shard's rule per_shard_name(rule, shard); the lineage reads it back
+    as the rule with its `shard` wildcard, and every other rule as it is."""
+    from embodied_snap.lineage.records import PER_SHARD, instance, per_shard_name
+
+    for shard in ("dynamics_train-01", "attachment-00"):
+        assert instance(per_shard_name("twin_acquire", shard), {}) == ("twin_acquire", {"shard": shard})
+    assert PER_SHARD == ("twin_acquire",)
+    assert instance("twin_index", {}) == ("twin_index", {})
+    assert instance("validate_shard", {"shard": "attachment-00"}) == ("validate_shard", {"shard": "attachment-00"})
+    assert instance("twin_acquire", {}) == ("twin_acquire", {})  # not a rule per shard

@@ -332,10 +332,10 @@ def tracked(smk, root=".", check_modules: bool = True):
 
     The old record goes first, so a failed job never leaves a record that vouches for outputs it
     did not write. On success the job's reads and modules are checked against its declarations
-    (UndeclaredInput, one line) and the record is written; on an exception nothing is. It yields
-    a list: a job that writes files Snakemake does not declare (the simulated rig's recordings)
-    adds them. `check_modules=False` is for tests that run it inside a process (pytest) that has
-    loaded other modules than the job's.
+    (UndeclaredInput, one line) and the record is written; on an exception nothing is. Every file
+    a job writes is one of its declared outputs (the simulated rig's recordings too, rules/acquire.smk).
+    `check_modules=False` is for tests that run it inside a process (pytest) that has loaded other
+    modules than the job's.
     """
     root = Path(root)
     wildcards = {k: str(v) for k, v in _named(getattr(smk, "wildcards", None)).items() if k != "_"}
@@ -343,15 +343,14 @@ def tracked(smk, root=".", check_modules: bool = True):
     rp = record_path(rule, wildcards, root)
     rp.unlink(missing_ok=True)
     started = _now()
-    undeclared: list[str] = []
     _watch()
     try:
-        yield undeclared
+        yield
     finally:
         reads = _stop_watching(root)
     config = dict(getattr(smk, "config", None) or {})
     inputs = [_rel(p, root) for p in _flat(smk.input)]
-    outputs = _flat(smk.output) + undeclared
+    outputs = _flat(smk.output)
     log = _flat(getattr(smk, "log", None))
     modules = loaded_modules() if check_modules else []
     own = {_rel(p, root) for p in outputs + log}
