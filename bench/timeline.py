@@ -27,6 +27,13 @@ STAMP = re.compile(r"^\[(\w{3} \w{3} +\d+ [\d:]+ \d{4})\]$")
 START = re.compile(r"^(?:local)?(?:rule|checkpoint) ([\w-]+):$")
 
 
+def logged_job(name: str) -> tuple[str, str]:
+    """A rule name as Snakemake's log and dry run print it -> (rule, wildcards as they print them):
+    a rule per shard (`twin_acquire_<shard>`) as its rule with the shard (lineage.records.instance)."""
+    rule, wc = instance(name, {})
+    return rule, ", ".join(f"{k}={v}" for k, v in wc.items())
+
+
 def stages(root: Path = ROOT) -> dict[str, str]:
     """rule -> the rules/<stage>.smk defining it (the Snakefile's own rules: 'Snakefile')."""
     out = {}
@@ -47,9 +54,9 @@ def jobs(log: str | Path) -> list[dict]:
         if m := STAMP.match(line):
             ts = dt.datetime.strptime(m.group(1), "%a %b %d %H:%M:%S %Y")
         elif m := START.match(line):
-            rule, wc = instance(m.group(1), {})
-            block = dict(rule=rule, wildcards=",".join(f"{k}={v}" for k, v in wc.items()), input=[], output=[],
-                         priority=0, threads=1, benchmark=None, start=ts)
+            rule, wildcards = logged_job(m.group(1))
+            block = dict(rule=rule, wildcards=wildcards, input=[], output=[], priority=0, threads=1, benchmark=None,
+                         start=ts)
         elif block and (m := re.match(r"^\s+wildcards: (.*)$", line)):
             block["wildcards"] = m.group(1)
         elif block and (m := re.match(r"^\s+(input|output): (.*)$", line)):

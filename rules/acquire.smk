@@ -25,8 +25,7 @@ for shard, gids in SHARDS.items():
             "../envs/esnap.yaml"
         params:
             groups=select(shard=shard).to_dict("records"),
-            # <raw>/groups/<group>/<file> -> <raw>, read off the outputs (snakemake --lint)
-            raw=lambda wc, output: str(Path(output.recordings[0]).parents[2]),
+            raw=lambda wc, output: raw_dir_of(output.recordings[0]),
             seed=config["seed"],
             protocol=protocol_params(*protocol.ACQUISITION),
             dt=config["twin"]["dt"],

@@ -127,10 +127,15 @@ def raw_of(**where):
     return group_files(select(**where).group_id)
 
 
+def raw_dir_of(recording):
+    """<raw>/groups/<id>/<file> (group_paths) -> <raw>: a path param read off a job's files, as
+    `snakemake --lint` asks of a path prefix; it is config raw_data.dir."""
+    return str(Path(recording).parents[2])
+
+
 def raw_dir(wildcards, input):
-    """A param: the raw directory, read off the job's first recording (<raw>/groups/<id>/<file>),
-    as `snakemake --lint` asks of a path prefix; it is config raw_data.dir."""
-    return str(Path(input.raw[0]).parents[2])
+    """A param: the raw directory of a job that reads recordings (`raw` input)."""
+    return raw_dir_of(input.raw[0])
 
 
 def metas_of(**where):

@@ -12,10 +12,12 @@ import torch
 import yaml
 
 from embodied_snap import resources as R
+from embodied_snap import runconfig
 from embodied_snap.cli import main
 from embodied_snap.dynamics import device as D
 from embodied_snap.lineage.dag import rule_table
-from embodied_snap.lineage.records import instance
+from embodied_snap.lineage.records import instance, per_shard_name
+from embodied_snap.plan import load_plan
 
 REPO = Path(__file__).resolve().parents[1]
 PROFILE = REPO / "profiles/slurm/config.yaml"
@@ -57,7 +59,9 @@ def test_every_benchmarked_rule_has_resources_and_threads(table):
     res = yaml.safe_load(PROFILE.read_text())["set-resources"]
     missing = R.not_measured(PROFILE.read_text())
     per_shard = {r for r in table if instance(r, {})[0] != r}
-    assert len(per_shard) == 53 and not per_shard & (set(res) | set(missing))
+    # one acquisition rule per shard of the paper budget's plan
+    assert per_shard == {per_shard_name("twin_acquire", s) for s in load_plan(runconfig.load()).shard}
+    assert not per_shard & (set(res) | set(missing))
     assert set(res) | set(missing) | per_shard == {r for r, t in table.items() if t["benchmark"]}
     unmeasured = R.measure(BENCH, {r: t["benchmark"] for r, t in table.items() if t["benchmark"]})[1]
     assert missing == [r for r in unmeasured if r not in per_shard]

@@ -22,11 +22,13 @@ import pytest
 import yaml
 
 from embodied_snap.lineage.dag import build_dag, rule_table
-from embodied_snap.lineage.records import instance
 
 from importprobe import loaded_by_scripts
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "bench"))  # bench/timeline.py reads Snakemake's logs
+from timeline import logged_job  # noqa: E402
+
 COPY = ["Snakefile", "config.yaml", "rules", "workflow_scripts", "schemas", "envs", "profiles",
         "reference", "report", "embodied_snap", "docs"]
 SMOKE = ["--config", "budget=smoke"]
@@ -50,12 +52,11 @@ def snakemake(cwd, *args, check=True):
 def dry_jobs(cwd, *targets) -> list[tuple[str, str]]:
     """(rule, wildcards) of every job a dry run would execute, sorted."""
     out = snakemake(cwd, "-n", *targets).stdout
-    jobs, rule = [], None
+    jobs = []
     for line in out.splitlines():
         m = re.match(r"^(?:rule|checkpoint) ([\w-]+):", line.strip())
         if m:
-            rule, wc = instance(m.group(1), {})
-            jobs.append([rule, ",".join(f"{k}={v}" for k, v in wc.items())])
+            jobs.append(list(logged_job(m.group(1))))
         m = re.match(r"^wildcards: (.*)$", line.strip())
         if m and jobs:
             jobs[-1][1] = m.group(1)
@@ -319,8 +320,7 @@ def dry_reasons(cwd, *targets) -> dict[tuple[str, str], str]:
         line = line.strip()
         m = re.match(r"^(?:local)?(?:rule|checkpoint) ([\w-]+):", line)
         if m:
-            rule, wc = instance(m.group(1), {})
-            key = [rule, ",".join(f"{k}={v}" for k, v in wc.items())]
+            key = list(logged_job(m.group(1)))
         elif key and line.startswith("wildcards: "):
             key[1] = line.removeprefix("wildcards: ")
         elif key and line.startswith("reason: "):
@@ -344,7 +344,7 @@ def test_editing_a_module_reruns_exactly_the_rules_whose_scripts_load_it(wf, mod
 
     ran = {j["rule"] for log in (wf / ".snakemake/log").glob("*.snakemake.log") for j in logged(log)}
     # a rule per shard (twin_acquire_<shard>) counts as its rule, as the log's jobs do
-    expected = {instance(r, {})[0] for r, d in table.items() if d["script"] and module in loads[d["script"]]} & ran
+    expected = {logged_job(r)[0] for r, d in table.items() if d["script"] and module in loads[d["script"]]} & ran
     assert expected
     m = wf / module
     keep, st = m.read_bytes(), m.stat()
