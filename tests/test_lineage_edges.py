@@ -225,6 +225,21 @@ def test_load_records_skips_configs_and_reports_what_is_not_a_record(tmp_path, m
     assert sorted(R.load_records()) == sorted(out)  # the root defaults to the working directory
 
 
+def test_load_records_a_record_gone_after_the_listing_is_missing_not_unreadable(tmp_path):
+    # a job beside the reader reruns: Snakemake removed its record between the glob and the read
+    # (the changed-recording rerun's check_separation met fig_limits' record so). A dangling link is
+    # listed and cannot be opened, as such a record is.
+    _rec(tmp_path, "a_rule", ["results/a.parquet"], "2026-12-01T10:00:00")
+    gone = tmp_path / R.RECORDS_DIR / "fig_rule" / "_.json"
+    gone.parent.mkdir()
+    gone.symlink_to(tmp_path / "nowhere.json")
+    (tmp_path / R.RECORDS_DIR / "q_rule").mkdir()
+    (tmp_path / R.RECORDS_DIR / "q_rule" / "_.json").mkdir()  # a folder: unreadable, still reported
+    errors = []
+    assert sorted(R.load_records(tmp_path, errors)) == ["results/a.parquet"]
+    assert [e[0] for e in errors] == ["results/provenance/q_rule/_.json"]
+
+
 def test_load_records_the_later_finished_wins_whatever_the_file_order(tmp_path):
     # b_rule sorts before y_rule but finished later: it keeps the shared output
     _rec(tmp_path, "b_rule", ["results/shared.txt"], "2026-12-01T11:00:00")

@@ -370,7 +370,9 @@ def tracked(smk, root=".", check_modules: bool = True):
 def load_records(root=".", errors: list | None = None) -> dict[str, dict]:
     """Output path -> the record of the job that wrote it (each record also gets `_record`, its own
     path). Where two records claim a path (a rule renamed), the later-finished wins. A record that
-    cannot be read is skipped here and, when `errors` is given, appended to it (path, why)."""
+    cannot be read is skipped here and, when `errors` is given, appended to it (path, why). One gone
+    between the listing and its reading is a job beside this one rerunning (Snakemake removes a
+    job's outputs, its record among them, before it runs): missing, as if listed a moment later."""
     root = Path(root)
     out: dict[str, dict] = {}
     for f in sorted((root / RECORDS_DIR).glob("*/*.json")):
@@ -380,6 +382,8 @@ def load_records(root=".", errors: list | None = None) -> dict[str, dict]:
             rec = json.loads(f.read_text())
             if not isinstance(rec, dict) or "rule" not in rec:
                 raise ValueError("not a provenance record")
+        except FileNotFoundError:
+            continue
         except (OSError, ValueError) as e:
             if errors is not None:
                 errors.append((f.relative_to(root).as_posix(), f"{type(e).__name__}: {e}"))
