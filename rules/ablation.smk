@@ -46,7 +46,7 @@ rule ablation_offsets:
         "logs/ablation/offsets.log",
     benchmark:
         "benchmarks/ablation/offsets.tsv"
-    priority: 1  # reads the shared runs (rules/policy.smk)
+    priority: FIRST  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -74,7 +74,7 @@ rule ablation_rules:
         "logs/ablation/rules.log",
     benchmark:
         "benchmarks/ablation/rules.tsv"
-    priority: 1  # reads the shared runs (rules/policy.smk)
+    priority: FIRST  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -104,7 +104,7 @@ rule ablation_bend:
         "logs/ablation/bend.log",
     benchmark:
         "benchmarks/ablation/bend.tsv"
-    priority: 1  # reads the shared runs (rules/policy.smk)
+    priority: FIRST  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -131,7 +131,7 @@ rule ablation_perturb:
         "logs/ablation/perturb.log",
     benchmark:
         "benchmarks/ablation/perturb.tsv"
-    priority: 1  # reads the shared runs (rules/policy.smk)
+    priority: FIRST  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     threads: 1

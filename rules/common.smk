@@ -83,12 +83,18 @@ ROLE_SHARDS = {
 }
 
 
+# Job priorities (docs/benchmarks.md, "Scheduling and the run's critical path" and "Longest
+# first"): FIRST for a job that must not wait (it reads recordings, or it is a shared run or reads
+# only those), then LONG for the other policy searches, so that the short jobs (evaluations, GRU
+# validations, figures) fill the cores beside the last searches instead of delaying them; 0 else.
+FIRST, LONG = 2, 1
+
+
 def reads_recordings(wildcards, input):
-    """Priority of a job: 1 if it reads recordings. Such a job has hundreds of inputs, and Snakemake
-    re-examines the inputs of every waiting job at each scheduling round, so none may wait behind
-    the long light jobs (GRU training, policy search): docs/benchmarks.md, "Scheduling and the
-    run's critical path"."""
-    return int(any(str(f).startswith(f"{RAW}/") for f in input))
+    """Priority of a job: FIRST if it reads recordings. Such a job has hundreds of inputs, and
+    Snakemake examines the inputs of every waiting job at each scheduling round, so none may wait
+    behind the long light jobs (GRU training, policy search)."""
+    return FIRST if any(str(f).startswith(f"{RAW}/") for f in input) else 0
 
 
 def imports(script):
@@ -256,9 +262,18 @@ SIM_RESOURCES = dict(gpu=int(PCFG["device"] == "cuda"))
 
 
 def shared_run(wildcards):
-    """Priority of a policy search or evaluation: 1 for a shared run (SHARED_RUNS), which the
-    ablation and the deployment read."""
-    return int(f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS)
+    """Priority of a policy evaluation: FIRST for a shared run (SHARED_RUNS), which the ablation
+    and the deployment read."""
+    return (
+        FIRST
+        if f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS
+        else 0
+    )
+
+
+def search_priority(wildcards):
+    """Priority of a policy search: FIRST for a shared run, LONG for the others (longest first)."""
+    return shared_run(wildcards) or LONG
 
 
 # The deployment (rules/deploy.smk): the manifest, and the trials recorded with it. Trials exist,

@@ -20,7 +20,7 @@ rule deploy_manifest:
         f"{DEPLOY}/manifest.json",
     log:
         "logs/deployment/manifest.log",
-    priority: 1  # reads the shared runs (rules/policy.smk)
+    priority: FIRST  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     params:
@@ -49,7 +49,7 @@ if TWIN:
             "benchmarks/deployment/trials.tsv"
         # It deploys the shared runs, so it goes before the other searches and runs beside them:
         # real-time trials use little of the one slot they hold (config twin.trials_at_a_time).
-        priority: 1
+        priority: FIRST
         conda:
             "../envs/esnap.yaml"
         params:

@@ -72,10 +72,9 @@ rule policy_search:
     benchmark:
         "benchmarks/policy/search_{arch}_seed{seed}.tsv"
     # The ablation and the deployment need only the shared runs: those go first, and the jobs that
-    # read them go before the other searches. Snakemake 9.27 re-examines every waiting job's inputs
-    # about once a second per finished job, so no job with many inputs is left waiting
-    # (docs/benchmarks.md, "Scheduling and the run's critical path").
-    priority: shared_run
+    # read them go before the other searches; the other searches go before the short jobs
+    # (search_priority, rules/common.smk).
+    priority: search_priority
     conda:
         "../envs/esnap.yaml"
     threads: 1
@@ -112,7 +111,7 @@ if PCFG["batch_runs"]:
             "logs/policy/search_lockstep.log",
         benchmark:
             "benchmarks/policy/search_lockstep.tsv"
-        priority: 1
+        priority: FIRST
         threads: workflow.cores
         params:
             runs=POLICY_RUNS_OF,

@@ -5,6 +5,8 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from embodied_snap.characterize import attachment, delay, heldbase, kinematics, release, servo, snap
 from embodied_snap.characterize import mocap as M
@@ -420,3 +422,17 @@ def test_every_reference_claim_has_a_value_and_paper_values_come_from_the_refere
     assert out["snap_auc"]["ours"] == ""  # NaN stays visible as missing, never a number
     assert out["direct_release_range_mps"]["ours"] == "[0.7, 0.8]"
     assert out["delay_closest_attached_mm"]["ours"] == "12" and out["ramped_slow_n"]["ours"] == "1"
+
+
+@settings(max_examples=300, deadline=None, database=None)
+@given(n=st.integers(1, 40), k=st.integers(1, 4), limit=st.integers(0, 45), seed=st.integers(0, 2**32 - 1),
+       p_nan=st.floats(0.0, 1.0))
+def test_bridge_is_pandas_inside_interpolation_bit_for_bit(n, k, limit, seed, p_nan):
+    """mocap.bridge replaced DataFrame.interpolate(limit=limit, limit_area="inside") in track(): the
+    same samples filled with the same values, to the bit, for any pattern of gaps and any limit."""
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(n, k))
+    x[rng.random((n, k)) < p_nan] = np.nan
+    want = pd.DataFrame(x).interpolate(limit=limit, limit_area="inside").to_numpy() if limit >= 1 else x
+    got = M.bridge(x.copy(), limit)
+    assert np.array_equal(got, want, equal_nan=True)
