@@ -3,9 +3,9 @@ excluded), the load average and how many job processes run. For bench/timeline.p
 
     python bench/sample_load.py OUT.tsv [--match "snakemake --cores 2 all" | --pid PID] [--every 5] [--gpu]
 
-Waits for a process whose command line contains --match (or takes process --pid), then writes t_s, main_cpu_s, load1 and
-children every --every seconds until it exits; --gpu adds GPU 0's busy % and memory in use (NVML,
-nvidia-ml-py), as NVML averages them over its last sample period.
+Waits for a process whose command line contains --match (or takes process --pid), then writes
+t_s, main_cpu_s, load1 and children every --every seconds until it exits; --gpu adds GPU 0's busy %
+and memory in use (NVML, nvidia-ml-py), as NVML averages them over its last sample period.
 """
 
 from __future__ import annotations

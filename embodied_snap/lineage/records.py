@@ -371,8 +371,8 @@ def load_records(root=".", errors: list | None = None) -> dict[str, dict]:
     """Output path -> the record of the job that wrote it (each record also gets `_record`, its own
     path). Where two records claim a path (a rule renamed), the later-finished wins. A record that
     cannot be read is skipped here and, when `errors` is given, appended to it (path, why). One gone
-    between the listing and its reading is a job beside this one rerunning (Snakemake removes a
-    job's outputs, its record among them, before it runs): missing, as if listed a moment later."""
+    between the listing and its reading belongs to a job beside this one that has just started (a
+    job removes its old record first, `tracked`): missing, as if listed a moment later."""
     root = Path(root)
     out: dict[str, dict] = {}
     for f in sorted((root / RECORDS_DIR).glob("*/*.json")):
