@@ -14,6 +14,7 @@ set -u
 OUT=$1 CHECK=${2:-}
 PY=${PYTHON:-python3} CORES=${CORES:-$(nproc)} T0=$(date +%s) END=$(($(date +%s) + ${DEADLINE_S:-3600} - 40))
 mkdir -p "$OUT"
+TMP=$(mktemp -d)  # the check's log and the node's config, beside nothing else
 # MuJoCo's figures render offscreen through the NVIDIA EGL vendor library where the node has it.
 egl=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
 [ -f $egl ] && export __EGL_VENDOR_LIBRARY_FILENAMES=$egl
@@ -28,9 +29,9 @@ DEV=cuda
 if [ -n "$CHECK" ]; then
   echo "== check: the GPU path on $CHECK"
   timeout 150 $PY bench/device_stages.py "$CHECK" --device cuda --generations 3 --short 2 --skip train,cpu \
-    --out "$OUT/check.json" >/tmp/check.log 2>&1 || DEV=cpu
+    --out "$OUT/check.json" >"$TMP/check.log" 2>&1 || DEV=cpu
   grep -q '"error"' "$OUT/check.json" 2>/dev/null && DEV=cpu
-  tee -a "$OUT/env.txt" </tmp/check.log
+  tee -a "$OUT/env.txt" <"$TMP/check.log"
   echo "== rollouts and training on: $DEV"
 fi
 
@@ -38,8 +39,8 @@ echo "== snakemake --cores $CORES all, budget ${BUDGET:-paper} (stops by $((END 
 s0=$(date +%s%N)
 # read over config.yaml (as profiles/slurm/seeds.yaml is): --config would pass `false` as a string
 printf 'policy: {device: %s, batch_runs: false}\ndynamics: {device: %s, seeds_in_one_job: false}\n' $DEV $DEV |
-  tee -a "$OUT/env.txt" >/tmp/node.yaml
-$PY -m snakemake --cores "$CORES" all --rerun-incomplete --keep-going --configfile /tmp/node.yaml \
+  tee -a "$OUT/env.txt" >"$TMP/node.yaml"
+$PY -m snakemake --cores "$CORES" all --rerun-incomplete --keep-going --configfile "$TMP/node.yaml" \
   --config budget="${BUDGET:-paper}" >"$OUT/run.log" 2>&1 &
 pid=$!
 $PY bench/sample_load.py "$OUT/samples.tsv" --pid $pid --every 1 --gpu 2>>"$OUT/run.log" &

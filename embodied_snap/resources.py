@@ -80,7 +80,8 @@ def set_resources(bench_dir: str | Path, table: dict[str, dict], per_shard=froze
                   ) -> tuple[dict[str, dict[str, int]], list[str]]:
     """({rule: {mem_mb, runtime, cpus_per_task}}, [benchmarked rules not measured]) for the
     benchmarked rules of `table` (lineage.dag.rule_table: each rule's benchmark regex and threads);
-    the rules `per_shard` get default-resources (above), their benchmarks matched but not read."""
+    the rules `per_shard` get default-resources (above): their benchmark files are matched, so
+    that none counts as a stranger, and their measurements dropped."""
     patterns = {r: t["benchmark"] for r, t in table.items() if t.get("benchmark")}
     measured, missing = measure(bench_dir, patterns)
     measured = {r: v for r, v in measured.items() if r not in per_shard}

@@ -83,8 +83,10 @@ def bridge(x: np.ndarray, limit: int) -> np.ndarray:
     limit_area="inside"), the same np.interp on the same numbers (tests/test_characterize.py), without
     its per-column overhead, which was most of a characterisation job's time. In place; limit < 1
     fills nothing."""
+    if limit < 1:
+        return x
     idx = np.arange(len(x))
-    for col in x.T if limit >= 1 else ():
+    for col in x.T:  # views: filled in place
         bad = np.isnan(col)
         ok = np.flatnonzero(~bad)
         if len(ok) == 0 or len(ok) == len(col):
