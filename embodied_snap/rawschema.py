@@ -1,22 +1,24 @@
 """The rig format's tables as schemas, and readers that turn read failures into one line.
 
-Each file of a recording has a pandera schema (MOCAP_SCHEMA, SERVO_SCHEMA, META_SCHEMA,
+Each file of a recording has a pandera schema (mocap_schema, servo_schema, meta_schema,
 index_schema); `run_schema` raises a RecordingError for the first rule a table breaks, naming the
-file, the group and the rule. The rules that span files or need limits from config (dropouts,
-speeds, labels, format version) are the gate's, in validate.py.
+file, the group and the rule. A fast pre-check passes a good table without pandera, which is
+imported only when a schema is built: on a table the pre-check doubts, to name the broken rule.
+The rules that span files or need limits from config (dropouts, speeds, labels, format version)
+are the gate's, in validate.py.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-import pandera.pandas as pa
 import pyarrow as pa_arrow
-from pandera.errors import SchemaError, SchemaErrorReason, SchemaErrors
 
 from .io import parquet_from_bytes, parquet_rows, read_parquet
 from .rawformat import (
@@ -33,6 +35,9 @@ from .rawformat import (
     mocap_columns,
     servo_columns,
 )
+
+if TYPE_CHECKING:
+    from pandera.errors import SchemaError
 
 # Lab-frame coordinates of a mocap volume are a few metres at most; the same arm in millimetres
 # reads hundreds to thousands, so this bound catches a unit slip.
@@ -60,18 +65,30 @@ GROUP_ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_-]{0,63}$"
 
 
 # --- schemas -------------------------------------------------------------------------------
+# pandera is imported where a schema is built, not with this module: its import and first
+# schema cost 0.26 s of every workflow parse (index.csv) and gate job, and a good table never
+# needs one (the pre-checks below).
 
 
 def _strictly_increasing(s: pd.Series) -> pd.Series:
     return pd.Series(np.diff(s.to_numpy(), prepend=-np.inf) > 0, index=s.index)
 
 
-_IN_METRES = pa.Check.in_range(-MAX_ABS_POSITION_M, MAX_ABS_POSITION_M, name="positions in metres")
-_INCREASING = pa.Check(_strictly_increasing, name="t strictly increasing", error="t does not increase")
-_KNOWN_SET = pa.Check.isin(EVIDENCE_SETS, name="known evidence set", error="not a known evidence set")
+def _increasing():
+    import pandera.pandas as pa
+
+    return pa.Check(_strictly_increasing, name="t strictly increasing", error="t does not increase")
 
 
-def _rate_check(hz: float, tol: float, name: str) -> pa.Check:
+def _known_set():
+    import pandera.pandas as pa
+
+    return pa.Check.isin(EVIDENCE_SETS, name="known evidence set", error="not a known evidence set")
+
+
+def _rate_check(hz: float, tol: float, name: str):
+    import pandera.pandas as pa
+
     # The median step is robust to jitter and to a few lost samples.
     return pa.Check(
         lambda df: len(df) > 1 and abs(np.median(np.diff(df["t"].to_numpy())) * hz - 1.0) <= tol,
@@ -104,8 +121,10 @@ def _mocap_intervals_constant(t: np.ndarray, tol: float = MOCAP_RATE_TOL) -> boo
         return bool((np.abs(dt - k * m) <= tol * m).all())
 
 
-def _mocap_rate_checks() -> list[pa.Check]:
+def _mocap_rate_checks() -> list:
     """The mocap time base (rule MOCAP_RATE_RULE): its rate in range and its intervals constant."""
+    import pandera.pandas as pa
+
     lo, hi = MOCAP_HZ_RANGE
     return [
         pa.Check(
@@ -122,7 +141,9 @@ def _mocap_rate_checks() -> list[pa.Check]:
     ]
 
 
-def _body_checks(b: str) -> list[pa.Check]:
+def _body_checks(b: str) -> list:
+    import pandera.pandas as pa
+
     pos = [f"{b}_{f}" for f in POSE_FIELDS[:3]]
     quat = [f"{b}_{f}" for f in POSE_FIELDS[3:]]
     v = f"{b}_valid"
@@ -141,12 +162,16 @@ def _body_checks(b: str) -> list[pa.Check]:
     ]
 
 
-def _mocap_schema() -> pa.DataFrameSchema:
-    cols = {"t": pa.Column("float64", _INCREASING)}
+@cache
+def mocap_schema():
+    import pandera.pandas as pa
+
+    in_metres = pa.Check.in_range(-MAX_ABS_POSITION_M, MAX_ABS_POSITION_M, name="positions in metres")
+    cols = {"t": pa.Column("float64", _increasing())}
     for b in BODIES:
         for f in POSE_FIELDS:
             # NaN allowed: tracking lost. Quaternions are checked as a whole (unit norm) below.
-            in_m = [_IN_METRES] if f in "xyz" else []
+            in_m = [in_metres] if f in "xyz" else []
             cols[f"{b}_{f}"] = pa.Column("float64", in_m, nullable=True)
         cols[f"{b}_valid"] = pa.Column("bool")
     checks = _mocap_rate_checks()
@@ -156,7 +181,10 @@ def _mocap_schema() -> pa.DataFrameSchema:
     return pa.DataFrameSchema(cols, checks=checks, strict=True)
 
 
-def _servo_schema() -> pa.DataFrameSchema:
+@cache
+def servo_schema():
+    import pandera.pandas as pa
+
     ticks = [
         pa.Check(
             pd.api.types.is_integer_dtype, name="ticks are integers", error="ticks not stored as integers"
@@ -167,7 +195,7 @@ def _servo_schema() -> pa.DataFrameSchema:
         pa.Check(pd.api.types.is_numeric_dtype, name="current is numeric", error="current not numeric"),
         pa.Check.in_range(-CURRENT_LIMIT_MA, CURRENT_LIMIT_MA, name="current in mA"),
     ]
-    cols = {"t": pa.Column("float64", _INCREASING)}
+    cols = {"t": pa.Column("float64", _increasing())}
     for i in SERVO_IDS:
         cols[f"goal_{i}"] = pa.Column(None, ticks)
         cols[f"present_{i}"] = pa.Column(None, ticks)
@@ -184,56 +212,65 @@ def _known_category(df: pd.DataFrame) -> pd.Series:
     )
 
 
-_KNOWN_CATEGORY = pa.Check(
-    _known_category, name="known category", error="category not one of its evidence set's"
-)
-_NONEMPTY = pa.Check.str_length(min_value=1, name="non-empty")
+def _iso8601(s: pd.Series) -> pd.Series:
+    return pd.to_datetime(s, errors="coerce", format="ISO8601").notna()
 
-# meta.json is validated as a one-row frame; keys beyond META_KEYS depend on the program.
-META_SCHEMA = pa.DataFrameSchema(
-    {
-        "group_id": pa.Column(str, _NONEMPTY),
-        "evidence_set": pa.Column(str, _KNOWN_SET),
-        "category": pa.Column(str),
-        "session": pa.Column(str, _NONEMPTY),
-    },
-    checks=[_KNOWN_CATEGORY],
-)
 
-def index_schema(pattern: str = GROUP_ID_PATTERN) -> pa.DataFrameSchema:
-    """index.csv; `pattern` is what a group id may look like (config raw_data.group_id_pattern)."""
+def _known_category_check():
+    import pandera.pandas as pa
+
+    return pa.Check(_known_category, name="known category", error="category not one of its evidence set's")
+
+
+def _nonempty():
+    import pandera.pandas as pa
+
+    return pa.Check.str_length(min_value=1, name="non-empty")
+
+
+@cache
+def meta_schema():
+    """meta.json is validated as a one-row frame; keys beyond META_KEYS depend on the program."""
+    import pandera.pandas as pa
+
     return pa.DataFrameSchema(
+        {
+            "group_id": pa.Column(str, _nonempty()),
+            "evidence_set": pa.Column(str, _known_set()),
+            "category": pa.Column(str),
+            "session": pa.Column(str, _nonempty()),
+        },
+        checks=[_known_category_check()],
+    )
+
+
+@cache
+def index_schema(pattern: str = GROUP_ID_PATTERN):
+    """index.csv; `pattern` is what a group id may look like (config raw_data.group_id_pattern)."""
+    import pandera.pandas as pa
+
+    schema = pa.DataFrameSchema(
         {
             "group_id": pa.Column(
                 str,
                 pa.Check.str_matches(pattern, name="group id pattern", error=f"does not match {pattern}"),
                 unique=True,
             ),
-            "evidence_set": pa.Column(str, _KNOWN_SET),
+            "evidence_set": pa.Column(str, _known_set()),
             "category": pa.Column(str),
-            "session": pa.Column(str, _NONEMPTY),
+            "session": pa.Column(str, _nonempty()),
             "recorded_at": pa.Column(
-                str,
-                pa.Check(
-                    lambda s: pd.to_datetime(s, errors="coerce", format="ISO8601").notna(),
-                    name="recorded_at is ISO 8601",
-                    error="not an ISO 8601 time",
-                ),
+                str, pa.Check(_iso8601, name="recorded_at is ISO 8601", error="not an ISO 8601 time")
             ),
             "n_mocap": pa.Column("int64", pa.Check.ge(0, name="row count >= 0"), coerce=True),
             "n_servo": pa.Column("int64", pa.Check.ge(0, name="row count >= 0"), coerce=True),
         },
-        checks=[_KNOWN_CATEGORY],
+        checks=[_known_category_check()],
         strict=True,
         ordered=True,
     )
-
-
-INDEX_SCHEMA = index_schema()
-assert list(INDEX_SCHEMA.columns) == list(INDEX_COLUMNS)
-
-MOCAP_SCHEMA = _mocap_schema()
-SERVO_SCHEMA = _servo_schema()
+    assert list(schema.columns) == list(INDEX_COLUMNS)
+    return schema
 
 
 def _first_row(err: SchemaError):
@@ -255,6 +292,9 @@ def run_schema(schema, df, path, group, noun="column"):
 
     `group` is the group id, or a callable row-index -> group id (index.csv, one group a row).
     """
+    import pandera.pandas as pa
+    from pandera.errors import SchemaError, SchemaErrorReason, SchemaErrors
+
     try:
         return schema.validate(df)
     except SchemaErrors as errs:  # pandera raises these for strict/coerce even when not lazy
@@ -315,7 +355,7 @@ _QUAT_FAST_TOL = QUAT_NORM_TOL * (1 - 1e-9)
 
 
 def _mocap_passes(df: pd.DataFrame) -> bool:
-    """Everything MOCAP_SCHEMA checks, in a few numpy passes over all bodies at once; True only
+    """Everything mocap_schema checks, in a few numpy passes over all bodies at once; True only
     when the schema passes. pandera then runs only on a frame this doubts, to name the first
     broken rule: a good recording is checked many times faster."""
     if list(df.columns) != mocap_columns() or list(df.dtypes) != _MOCAP_DTYPES:
@@ -333,7 +373,7 @@ def _mocap_passes(df: pd.DataFrame) -> bool:
 
 
 def _servo_passes(df: pd.DataFrame) -> bool:
-    """Everything SERVO_SCHEMA checks (see _mocap_passes)."""
+    """Everything servo_schema checks (see _mocap_passes)."""
     dtypes = list(df.dtypes)
     if list(df.columns) != servo_columns() or dtypes[0] != np.float64:
         return False
@@ -351,14 +391,46 @@ def _servo_passes(df: pd.DataFrame) -> bool:
     return bool(a[:, _SERVO_TICKS].max() <= TICK_LIMIT and a[:, ~_SERVO_TICKS].max() <= CURRENT_LIMIT_MA)
 
 
+# A row count as index_schema coerces it without doubt: plain digits, far below int64's limit.
+_COUNT = r"[0-9]{1,15}"
+_COUNTS = ("n_mocap", "n_servo")
+
+
+def _index_passes(df: pd.DataFrame, pattern: str) -> bool:
+    """Everything index_schema checks, with the same pandas calls as its checks but without
+    pandera's overhead per check (see _mocap_passes)."""
+    if list(df.columns) != list(INDEX_COLUMNS) or df.isna().to_numpy().any():
+        return False
+    if not all(pd.api.types.is_string_dtype(df[c]) for c in df):
+        return False
+    gid = df["group_id"]
+    return bool(
+        gid.str.match(pattern, na=False).all()
+        and gid.is_unique
+        and df["evidence_set"].isin(EVIDENCE_SETS).all()
+        and (df["session"].str.len() >= 1).all()
+        and _iso8601(df["recorded_at"]).all()
+        and all(df[c].str.fullmatch(_COUNT).all() for c in _COUNTS)
+        and _known_category(df).all()
+    )
+
+
 def check_mocap(df: pd.DataFrame, path, gid: str) -> None:
     if not _mocap_passes(df):
-        run_schema(MOCAP_SCHEMA, df, path, gid)
+        run_schema(mocap_schema(), df, path, gid)
 
 
 def check_servo(df: pd.DataFrame, path, gid: str) -> None:
     if not _servo_passes(df):
-        run_schema(SERVO_SCHEMA, df, path, gid)
+        run_schema(servo_schema(), df, path, gid)
+
+
+def check_index(df: pd.DataFrame, path, pattern: str, group) -> pd.DataFrame:
+    """index.csv's table (all strings) checked, its row counts as int64 (as the schema coerces
+    them); `group`: row index -> group id, for the error line."""
+    if _index_passes(df, pattern):
+        return df.astype(dict.fromkeys(_COUNTS, "int64"))
+    return run_schema(index_schema(pattern), df, path, group)
 
 
 # --- readers that turn read failures into RecordingErrors ------------------------------------
@@ -393,7 +465,7 @@ def recording_rows(path: Path, gid: str) -> int:
 
 
 def _meta_passes(meta: dict) -> bool:
-    """Everything META_SCHEMA checks, in plain Python (see _mocap_passes). ASCII only: other
+    """Everything meta_schema checks, in plain Python (see _mocap_passes). ASCII only: other
     text goes through pandera's frame, as it always did."""
     v = [meta.get(k) for k in META_KEYS]
     if not all(type(x) is str and x.isascii() for x in v):
@@ -415,7 +487,7 @@ def read_meta_checked(path: Path, gid: str, index_row: dict | None = None) -> di
         )
     if not _meta_passes(meta):
         run_schema(
-            META_SCHEMA, pd.DataFrame([{k: meta[k] for k in META_KEYS if k in meta}]), path, gid, noun="key"
+            meta_schema(), pd.DataFrame([{k: meta[k] for k in META_KEYS if k in meta}]), path, gid, noun="key"
         )
     if meta["group_id"] != gid:
         raise RecordingError(

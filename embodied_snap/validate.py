@@ -33,14 +33,13 @@ from .rawschema import (
     COVER_TOL_S,
     GROUP_ID_PATTERN,
     TRACKED_BODIES,
+    check_index,
     check_mocap,
     check_servo,
     file_entry,
-    index_schema,
     load_recording,
     read_meta_checked,
     recording_rows,
-    run_schema,
 )
 
 __all__ = [
@@ -343,7 +342,7 @@ def read_index(raw_dir, pattern: str = GROUP_ID_PATTERN) -> pd.DataFrame:
     if raw.columns.duplicated().any():
         raise RecordingError(path, "-", f"repeated column in {header}", "index columns")
     gid_of = lambda row: raw["group_id"].iloc[int(row)] if "group_id" in raw else "-"  # noqa: E731
-    return run_schema(index_schema(pattern), raw, path, gid_of)
+    return check_index(raw, path, pattern, gid_of)
 
 
 def check_folders(raw_dir, group_ids) -> None:

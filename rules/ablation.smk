@@ -186,6 +186,7 @@ rule fig_ablation:
         ),
     log:
         "logs/fig_ablation.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     script:

@@ -228,6 +228,7 @@ rule fig_limits:
         ),
     log:
         "logs/fig_limits.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     params:
@@ -252,6 +253,7 @@ rule fig_snap:
         ),
     log:
         "logs/fig_snap.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     params:

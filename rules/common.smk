@@ -86,8 +86,10 @@ ROLE_SHARDS = {
 # Job priorities (docs/benchmarks.md, "Scheduling and the run's critical path" and "Longest
 # first"): FIRST for a job that must not wait (it reads recordings, or it is a shared run or reads
 # only those), then LONG for the other policy searches, so that the short jobs (evaluations, GRU
-# validations, figures) fill the cores beside the last searches instead of delaying them; 0 else.
-FIRST, LONG = 2, 1
+# validations, figures) fill the cores beside the last searches instead of delaying them; then
+# DRAW for a figure, the longest of the short jobs (matplotlib: 1.5-2 s, a claims table 0.5 s) and
+# what a rerun waits for; 0 else.
+FIRST, LONG, DRAW = 3, 2, 1
 
 
 def reads_recordings(wildcards, input):

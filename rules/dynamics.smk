@@ -206,6 +206,7 @@ rule fig_gates:
         ),
     log:
         "logs/fig_gates.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     params:

@@ -210,6 +210,7 @@ rule fig_benchmark:
         ),
     log:
         "logs/fig_benchmark.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     script:

@@ -27,6 +27,7 @@ rule fig_data_overview:
         ),
     log:
         "logs/fig_data_overview.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     script:

@@ -205,6 +205,7 @@ rule fig_robustness:
         ),
     log:
         "logs/fig_robustness.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     script:

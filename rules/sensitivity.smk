@@ -105,6 +105,7 @@ rule fig_sensitivity:
         ),
     log:
         "logs/fig_sensitivity.log",
+    priority: DRAW
     conda:
         "../envs/esnap.yaml"
     script:

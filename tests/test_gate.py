@@ -216,8 +216,8 @@ def test_fast_path_passes_only_what_pandera_passes(raw, edit):
     fm, fs = _edits()[edit]
     p = group_paths(raw, "dyn_0001")
     for fn, frame, fast, schema in (
-        (fm, pd.read_parquet(p["mocap"]), R._mocap_passes, R.MOCAP_SCHEMA),
-        (fs, pd.read_parquet(p["servo"]), R._servo_passes, R.SERVO_SCHEMA),
+        (fm, pd.read_parquet(p["mocap"]), R._mocap_passes, R.mocap_schema()),
+        (fs, pd.read_parquet(p["servo"]), R._servo_passes, R.servo_schema()),
     ):
         if fn is None:
             continue
@@ -258,13 +258,76 @@ def test_meta_fast_path_passes_only_what_pandera_passes(raw, edit):
     meta = {**json.loads(group_paths(raw, "dyn_0001")["meta"].read_text()), **edit}
     frame = pd.DataFrame([{k: meta[k] for k in R.META_KEYS if k in meta}])
     try:
-        R.META_SCHEMA.validate(frame)
+        R.meta_schema().validate(frame)
         ok = True
     except (pe.SchemaError, pe.SchemaErrors):
         ok = False
     assert not R._meta_passes(meta) or ok
     if not edit:
         assert R._meta_passes(meta) and ok
+
+
+_INDEX_EDITS = {
+    "none": lambda d: d,
+    "id repeated": lambda d: d.assign(group_id=d.group_id.iloc[0]),
+    "id with a slash": lambda d: d.assign(group_id=["a/b", "c"]),
+    "id not ascii": lambda d: d.assign(group_id=["dyn_é", "dyn_0002"]),
+    "unknown set": lambda d: d.assign(evidence_set="dynamic"),
+    "category of another set": lambda d: d.assign(category="sealed"),
+    "empty session": lambda d: d.assign(session=""),
+    "empty id": lambda d: d.assign(group_id=["", "dyn_0002"]),
+    "date not iso": lambda d: d.assign(recorded_at="5 Dec 2026"),
+    "date with zone": lambda d: d.assign(recorded_at="2026-12-05T10:00:00+01:00"),
+    "count negative": lambda d: d.assign(n_mocap="-1"),
+    "count a float": lambda d: d.assign(n_servo="12.0"),
+    "count padded": lambda d: d.assign(n_servo=" 12"),
+    "count leading zero": lambda d: d.assign(n_mocap="0720"),
+    "count empty": lambda d: d.assign(n_mocap=""),
+    "columns reordered": lambda d: d[[d.columns[1], d.columns[0], *d.columns[2:]]],
+    "extra column": lambda d: d.assign(note="x"),
+    "column missing": lambda d: d.drop(columns="session"),
+}
+# Edits the schema passes: the pre-check must pass them too (and give pandera's frame).
+_INDEX_BOTH_PASS = ("none", "date with zone", "count leading zero")
+
+
+@pytest.mark.parametrize("edit", list(_INDEX_EDITS))
+def test_index_fast_path_passes_only_what_pandera_passes(raw, edit):
+    """index.csv's pre-check may doubt a good table (pandera then decides), never pass a bad one;
+    what it passes is the schema's own output (the row counts coerced to int64)."""
+    import pandera.errors as pe
+
+    from embodied_snap import rawschema as R
+    from embodied_snap.validate import GROUP_ID_PATTERN
+
+    df = _INDEX_EDITS[edit](pd.read_csv(raw / "index.csv", dtype=str, keep_default_na=False))
+    try:
+        want = R.index_schema(GROUP_ID_PATTERN).validate(df.copy())
+    except (pe.SchemaError, pe.SchemaErrors):
+        want = None
+    fast = R._index_passes(df, GROUP_ID_PATTERN)
+    assert not fast or want is not None
+    if edit in _INDEX_BOTH_PASS:
+        assert fast and want is not None
+        pd.testing.assert_frame_equal(R.check_index(df, "index.csv", GROUP_ID_PATTERN, str), want)
+
+
+def test_a_good_tree_is_gated_without_pandera(raw):
+    """pandera is imported only to name a broken rule: a good index and good groups pass the
+    pre-checks alone (its import and first schema were 0.26 s of every workflow parse)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from embodied_snap.validate import read_index, validate_group; "
+        "from paper_protocol import LIMITS; "
+        f"rows = read_index({str(raw)!r}).to_dict('records'); "
+        f"[validate_group({str(raw)!r}, r['group_id'], r, limits=LIMITS) for r in rows]; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] == 'pandera'))"
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).parent)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    assert out.stdout.strip() == "[]", out.stdout[:300]
 
 
 def test_recording_read_once_is_the_file(raw):

@@ -238,8 +238,9 @@ def test_priorities_are_exactly_on_the_jobs_that_must_not_wait(wf):
     are the shared architecture's alone (those searches and evaluations, the ablation, the
     deployment manifest and the trials that run it: they go before the other searches). The other
     searches, and they alone, have the second: the long jobs start before the short ones (longest
-    first). The separation proof also reads only shared runs, but it waits on every claims table
-    anyway; the robustness variants are not in `all`."""
+    first). The other figures have the third: the longest of the short jobs. The separation proof
+    also reads only shared runs, but it waits on every claims table anyway; the robustness
+    variants are not in `all`."""
     sys.path.insert(0, str(REPO / "bench"))
     from timeline import jobs as logged
     from timeline import stages
@@ -257,9 +258,13 @@ def test_priorities_are_exactly_on_the_jobs_that_must_not_wait(wf):
         return reads_raw or deploys or (runs == {"shared"} and not any(f.endswith("claims.csv") for f in j["input"]))
 
     def expected(j):
-        return 2 if first(j) else 1 if j["rule"] == "policy_search" else 0
+        if first(j):
+            return 3
+        if j["rule"] == "policy_search":
+            return 2
+        return 1 if any(f.startswith("results/figs/") for f in j["output"]) else 0
 
-    assert {expected(j) for j in jobs} == {0, 1, 2}
+    assert {expected(j) for j in jobs} == {0, 1, 2, 3}
     assert all(j["priority"] == expected(j) for j in jobs), [
         (j["rule"], j["priority"]) for j in jobs if j["priority"] != expected(j)]
 
