@@ -11,6 +11,7 @@ on the lab PC, where `esnap deploy` has numpy and dynamixel-sdk alone.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from .policy.architectures import seeds_error
@@ -47,19 +48,37 @@ def validate(cfg: dict) -> dict:
     err = violation(cfg, SCHEMA)
     if err:
         raise ConfigError(f"config: {err}")
-    err = names_error(cfg)
+    err = beyond_schema_error(cfg)
     if err:
         raise ConfigError(err)
     return cfg
 
 
+def beyond_schema_error(cfg: dict) -> str | None:
+    """One line naming a key the schema cannot judge (names_error, pattern_error), as its own
+    errors read; None if there is none. The Snakefile checks it after the schema, as `esnap` does."""
+    return names_error(cfg) or pattern_error(cfg)
+
+
 def names_error(cfg: dict) -> str | None:
     """One line naming a key the schema leaves to the table that holds its names: a budget's
     evidence set or category (rawformat.EVIDENCE) or architecture (policy/architectures.py), unknown
-    or (architectures) missing; None if all are known. The Snakefile checks it after the schema."""
+    or (architectures) missing; None if all are known (beyond_schema_error)."""
     from .rawformat import groups_error  # pandas: not on the lab PC, where no config is checked
 
     return groups_error(cfg) or seeds_error(cfg)
+
+
+def pattern_error(cfg: dict) -> str | None:
+    """One line if raw_data.group_id_pattern is not a regular expression (every reader of
+    index.csv and the plan match group ids with it); None if it compiles."""
+    pattern = cfg["raw_data"]["group_id_pattern"]
+    try:
+        re.compile(pattern)
+    except re.error as e:
+        return (f"config: raw_data.group_id_pattern: {pattern!r} is not a regular expression ({e}) "
+                "(rule: group ids match a Python regular expression)")
+    return None
 
 
 def _read(path: Path) -> dict:

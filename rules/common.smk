@@ -31,11 +31,12 @@ RAW = config["raw_data"]["dir"]
 BUDGET = config["budgets"][config["budget"]]
 TWIN = config["raw_data"]["source"] == "twin"
 
-# Names the schema leaves to their tables (evidence sets and categories, architectures): an unknown
-# or missing one stops here in one line, as a schema error does (embodied_snap/runconfig.py).
-NAMES_ERROR = runconfig.names_error(config)
-if NAMES_ERROR:
-    sys.exit(f"error: {NAMES_ERROR}")
+# What the schema cannot judge (names left to their tables: evidence sets and categories,
+# architectures; the group id pattern): a bad one stops here in one line, as a schema error does
+# (embodied_snap/runconfig.py).
+CONFIG_ERROR = runconfig.beyond_schema_error(config)
+if CONFIG_ERROR:
+    sys.exit(f"error: {CONFIG_ERROR}")
 
 # raw_data/ and results/ hold one budget's run at a time (docs/design.md, "Budgets"): asking for
 # another stops here with exactly one line (no WorkflowError frame around it), naming both

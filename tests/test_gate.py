@@ -135,15 +135,6 @@ def test_exclusion_keeps_every_other_group_in_place(tmp_path):
         load_plan(_cfg(dir=str(tmp_path), exclude=["att_0999"]))
 
 
-def test_a_group_id_pattern_that_is_no_regular_expression_is_one_line(tmp_path):
-    """config raw_data.group_id_pattern is compiled before any id is matched against it: a broken
-    one is a PlanError naming the key (the workflow and `esnap validate` print it as one line), not
-    the regular expression engine's traceback."""
-    with pytest.raises(PlanError, match=r"^config raw_data.group_id_pattern: '\(dyn' is not a regular "
-                       r"expression \(missing \), unterminated subpattern at position 0\) \(rule: "):
-        load_plan(_cfg(dir=str(tmp_path), group_id_pattern="(dyn"))
-
-
 def test_twin_index_must_match_the_plan_and_folders_must_be_planned(tmp_path):
     plan = load_plan(_cfg(dir=str(tmp_path)))
     rows = plan.assign(recorded_at="2026-03-01T10:00:00", n_mocap=1, n_servo=1)

@@ -153,6 +153,33 @@ def test_unknown_or_missing_names_are_refused(tmp_path):
         runconfig.load(tmp_path / "extra.yaml", root=REPO)
 
 
+BAD_PATTERN = ("config: raw_data.group_id_pattern: '(dyn' is not a regular expression (missing ), "
+               "unterminated subpattern at position 0) (rule: group ids match a Python regular expression)")
+
+
+def test_a_group_id_pattern_that_is_no_regular_expression_is_one_line(tmp_path):
+    """raw_data.group_id_pattern is compiled with the config, before the plan, index.csv or an
+    import matches an id against it: a broken one is one line naming the key, for `esnap` (every
+    command loads its config through runconfig) and for the workflow, not the regex engine's
+    traceback."""
+    cfg = runconfig.load(root=REPO)
+    assert runconfig.pattern_error(cfg) is None
+    cfg["raw_data"]["group_id_pattern"] = "(dyn"
+    assert runconfig.beyond_schema_error(cfg) == BAD_PATTERN
+    (tmp_path / "bad.yaml").write_text("raw_data: {group_id_pattern: '(dyn'}\n")
+    with pytest.raises(runconfig.ConfigError) as e:
+        runconfig.load(tmp_path / "bad.yaml", root=REPO)
+    assert str(e.value) == BAD_PATTERN
+    d = tmp_path / "wf"
+    d.mkdir()
+    _copy(d)
+    (d / "bad.yaml").write_text("raw_data: {group_id_pattern: '(dyn'}\n")
+    r = run(["snakemake", "-n", "--cores", "1", "--config", "budget=smoke", "--configfile", "bad.yaml"], d,
+            check=False)
+    assert r.returncode != 0 and [ln for ln in (r.stdout + r.stderr).splitlines() if "(dyn" in ln] == [
+        f"error: {BAD_PATTERN}"], r.stderr[-2000:]
+
+
 def test_the_table_is_every_architecture():
     assert architectures.NAMES == ("shared", "centralised", "centralised16", "unshared")
     assert {a.sharing for a in architectures.TABLE} <= set(architectures.SHARING)
