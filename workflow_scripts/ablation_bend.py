@@ -1,10 +1,6 @@
 """Bend-point propagation: the selected policy's simulated successes on the evaluation targets and
 the simulated rig's recorded strikes (training groups), by the same estimate."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import numpy as np

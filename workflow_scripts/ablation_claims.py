@@ -1,9 +1,5 @@
 """Every number of the ablation paragraphs beside the paper's: results/ablation/claims.csv."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

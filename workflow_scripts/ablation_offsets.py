@@ -1,9 +1,5 @@
 """Event offsets delta of the three trigger rules, fitted on the offset targets only."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import numpy as np

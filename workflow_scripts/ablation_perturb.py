@@ -1,10 +1,6 @@
 """Pre-release perturbation sweep of the selected policy on the evaluation targets, at multiples of
 the hold model's leave-one-session-out error read from results/dynamics/hold.json."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,10 +1,6 @@
 """Every release rule and the two references on the release-evaluation targets (never read by the
 offset fit): one row per rule and target."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

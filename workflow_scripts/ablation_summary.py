@@ -1,10 +1,6 @@
 """Fig. 6 and claims statistics of the ablation: release rules, tolerance sweep, bend point,
 perturbation."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

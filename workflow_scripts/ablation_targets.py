@@ -1,10 +1,6 @@
 """The ablation's target sets: offset targets and release-evaluation targets, one seed each, in
 target families (docs/ablation.md)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """Attachment: speed/tilt logistic model with session-grouped CV AUC, and the threshold counts."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.characterize import attachment, trials

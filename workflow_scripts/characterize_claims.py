@@ -1,9 +1,5 @@
 """Every characterisation number beside the paper's: results/characterize/claims.csv."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,10 +1,6 @@
 """Delay sweep (held out from every fit): speed and approach over tau, attach counts, the
 supported timing interval."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.characterize import delay, trials

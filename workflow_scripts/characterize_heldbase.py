@@ -1,9 +1,5 @@
 """Held-base trials: causal detectors against the event (the snap; the hand's push for comparison)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """Tendon kinematics (Eq. 1): lever ratios d_p/k and tendon travel per tick, from the bursts."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.characterize import kinematics as K

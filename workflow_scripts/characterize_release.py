@@ -1,10 +1,6 @@
 """Release modes: peak tip speeds, direct range, instantaneous fraction above 1 m/s, rates at the
 operating point over the Eq. 2 ceilings."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

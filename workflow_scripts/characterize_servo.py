@@ -1,9 +1,5 @@
 """Servo rate: first-order fit over all calibration bursts; Eq. 2 ceilings from the fitted levers."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,10 +1,6 @@
 """Snap classifier P_snap(rho1, rho2) from the training-split characterisation groups; the JSON
 is what the policy reward loads (embodied_snap.characterize.snap.load)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.characterize import snap, trials

@@ -3,10 +3,6 @@ fail the workflow on any leak.
 Missing records are not reported here (jobs beside this one may be rebuilding theirs right now);
 `esnap check-separation` after the run does."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,10 +1,6 @@
 """Prove docs/design.md section 3 on the Snakemake DAG (the half of the proof a changed recording
 does not move); check_separation adds the records and fails the workflow on any leak."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.lineage.checks import static_proof

@@ -1,9 +1,5 @@
 """The run as a Workflow Run RO-Crate: results/crate/ro-crate-metadata.json."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 from pathlib import Path
 

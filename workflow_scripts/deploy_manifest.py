@@ -1,10 +1,6 @@
 """The deployment manifest (paper VI): the selected shared policy and everything `esnap deploy`
 needs, with the sha256 of every input, validated against schemas/deployment_manifest.schema.json."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

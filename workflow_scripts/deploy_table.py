@@ -1,10 +1,6 @@
 """Table II (paper VI) from the deployment recordings (embodied_snap/deploy/table2.py), and the
 deployment claims beside the paper's values."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

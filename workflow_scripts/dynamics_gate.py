@@ -1,9 +1,5 @@
 """Delay-sweep gate: measured vs predicted peak tip speed and travel, per seed."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import torch

@@ -1,9 +1,5 @@
 """Hold bank of the training-split dynamics groups and its leave-one-session-out errors."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.dynamics import data, hold

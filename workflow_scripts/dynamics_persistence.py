@@ -1,9 +1,5 @@
 """Persistence baseline on the validation windows (h = 1..35)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.dynamics import evaluate as E

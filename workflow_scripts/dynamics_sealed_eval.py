@@ -1,9 +1,5 @@
 """The single sealed evaluation: each selected seed and persistence, once, on every sealed window."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import torch

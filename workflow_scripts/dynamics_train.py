@@ -1,10 +1,6 @@
 """Eq. 3-4 for one seed, or for every seed side by side (config dynamics.seeds_in_one_job): train on
 the training windows, select on the validation windows."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import pandas as pd

@@ -1,9 +1,5 @@
 """Validation tip error of one selected seed; the gap between carried-state and re-encoded rollouts."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import torch

@@ -1,9 +1,5 @@
 """Figure 6: release-rule ablation in simulation."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """Figure 0: the recordings at a glance."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

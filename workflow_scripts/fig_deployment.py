@@ -1,10 +1,6 @@
 """Fig. 7: a successful deployment trial, recorded (top) and as the dynamics model predicts it for
 the same commands (bottom), rendered offscreen by MuJoCo."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import os
 import sys
 

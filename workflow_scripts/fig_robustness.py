@@ -1,9 +1,5 @@
 """Fig. S1: the architecture result on the benchmark and its robustness variants."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

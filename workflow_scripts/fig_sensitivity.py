@@ -1,9 +1,5 @@
 """Fig. S2: the architecture result from each start, and how tied the shared sections are."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

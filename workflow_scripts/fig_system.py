@@ -1,9 +1,5 @@
 """Figure 1: the arm, the primitive on a recorded strike, the shared policy's commands."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 from pathlib import Path

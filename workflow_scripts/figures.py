@@ -1,10 +1,6 @@
 """Assemble results/figures/ from the per-figure jobs. Each copy gets its own record, so an audit of
 one figure follows that figure's job alone, not every figure's."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import shutil
 import sys
 from datetime import datetime, timezone

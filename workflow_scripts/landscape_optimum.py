@@ -1,10 +1,6 @@
 """Per target, the best six commands CMA-ES finds on them directly, in two independent repeats:
 results/landscape/optimum.parquet (the best repeat's strike, and both repeats' rewards)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import numpy as np

@@ -1,10 +1,6 @@
 """What the landscape allows: the per-target optimum against each architecture's policies, the optimum
 regressed per section, and each architecture fitted to it: results/landscape/{summary.json,architectures.csv}."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

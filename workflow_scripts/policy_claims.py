@@ -1,10 +1,6 @@
 """Every architecture and generalisation number of sections V-A and V-B beside the paper's:
 results/policy/claims.csv."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

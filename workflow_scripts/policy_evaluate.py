@@ -1,10 +1,6 @@
 """The selected policy of one run on the evaluation targets (used by nothing before this job); with
 params.generations, the policy the run had selected at that point (a smaller budget)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """The non-learned baseline: the best of the fixed primitives on the selection targets, evaluated."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import numpy as np

@@ -3,10 +3,6 @@ larger budget (input `resume`: the run and its CMA-ES state); or several runs in
 policy.batch_runs), each generation of all of them one batch of rollouts. Params `runs`: the
 (architecture, seed) of each output, in order."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

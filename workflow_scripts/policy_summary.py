@@ -1,9 +1,5 @@
 """Architecture benchmark and generalisation (V-A, V-B): results/policy/summary.json."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

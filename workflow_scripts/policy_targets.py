@@ -1,9 +1,5 @@
 """The simulated target sets: training (per generation), selection and evaluation, one seed each."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """Strike cloud, Delta_str and directional workspace of the training-split dynamics groups."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import numpy as np

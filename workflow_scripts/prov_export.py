@@ -1,9 +1,5 @@
 """Export the run's provenance as W3C PROV-JSON."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.lineage.prov import export

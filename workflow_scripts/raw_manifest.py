@@ -1,9 +1,5 @@
 """The raw tree's manifest: every group with the sha256 of each file."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

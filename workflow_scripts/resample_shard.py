@@ -1,9 +1,5 @@
 """One shard of groups on the 50 Hz grid, each group on its own."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.lineage.records import tracked

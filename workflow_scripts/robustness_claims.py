@@ -1,9 +1,5 @@
 """The architecture result on the benchmark and each robustness variant: results/robustness/variants.csv."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

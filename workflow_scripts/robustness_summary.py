@@ -1,9 +1,5 @@
 """The benchmark and its robustness variants side by side: results/robustness/summary.json."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

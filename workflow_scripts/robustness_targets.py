@@ -1,10 +1,6 @@
 """The robustness variants' targets: training, selection and evaluation drawn uniformly over the
 measured workspace, and the training targets of the generations a continued run adds."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """The benchmark from each start, read by the fixed rule, with the slope probe: results/sensitivity/summary.json."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

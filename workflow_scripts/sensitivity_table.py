@@ -1,9 +1,5 @@
 """Per start: the architecture result, the reading and the slope probe: results/sensitivity/starts.csv."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

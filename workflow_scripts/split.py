@@ -1,9 +1,5 @@
 """The group split (train/validation/sealed), written once from the group list and the seed."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import pandas as pd

@@ -1,9 +1,5 @@
 """The claims ledger (results/tables/claims.{csv,md}) and the report's captions."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 from pathlib import Path
 

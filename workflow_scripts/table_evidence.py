@@ -1,9 +1,5 @@
 """Table I from the lineage: results/tables/table1_evidence.{csv,md,tex} and its report caption."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 from pathlib import Path

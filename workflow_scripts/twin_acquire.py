@@ -2,10 +2,6 @@
 
 Recordings are source data: written read-only, like Snakemake's protected outputs."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import os
 import sys
 from pathlib import Path

@@ -3,10 +3,6 @@
 gate enter the deployment index; aborted ones are listed with their cause and never enter it
 (deploy.trials, as for the lab's trials)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial

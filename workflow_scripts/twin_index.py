@@ -1,9 +1,5 @@
 """raw_data/index.csv from what each acquisition shard recorded."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """What the simulated rig shows (issue 2 table), computed from its recordings."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import pandas as pd

