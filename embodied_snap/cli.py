@@ -364,7 +364,11 @@ def cmd_lab_plan(a) -> int:
         t = place_target(bearing, offset, float(cfg["twin"]["dt"]), proto)
         return dict(centre_m=[round(float(v), 4) for v in t["pos"]], quat=[round(float(v), 5) for v in t["quat"]])
 
-    doc = LP.build(cfg, budget, place=None if a.no_targets else place)
+    try:
+        doc = LP.build(cfg, budget, place=None if a.no_targets else place)
+    except LP.PlanError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 1
     LP.write(doc, out)
     print(LP.summary(doc))
     env, ids = doc["envelope"], doc["servos"]["ids"]
@@ -388,7 +392,8 @@ def cmd_lab_acquire(a) -> int:
         raise UsageError("--yes is required when stdin is not a terminal: nobody can be asked before the arm moves")
     out = _made_dir(a.out, "--out")
     try:
-        acquire(a.plan, a.port, out, start=a.from_group, yes=a.yes, baud=a.baud, ask=_answer)
+        acquire(a.plan, a.port, out, start=a.from_group, yes=a.yes, baud=a.baud, session=a.session,
+                evidence_set=a.evidence_set, ask=_answer)
     except LabArgumentError as e:
         raise UsageError(str(e)) from None
     except LabError as e:
@@ -479,8 +484,12 @@ def cmd_deploy_index(a) -> int:
 
 def cmd_claims(a) -> int:
     """The claims ledger, filtered by paper section and status."""
-    from .paper.ledger import COLUMNS, count_line, read
+    from .paper.ledger import COLUMNS, STATUSES, count_line, read
+    from .paper.sections import section_key
 
+    for s in a.status or []:
+        if s not in STATUSES:
+            raise UsageError(f"--status {s}: no such claim status (statuses: {', '.join(STATUSES)})")
     path = Path(_dir(a.root, "--root")) / a.ledger
     if not path.is_file():
         print(f"error: {a.ledger}: no claims ledger (run: snakemake results/tables/claims.csv)", file=sys.stderr)
@@ -494,6 +503,11 @@ def cmd_claims(a) -> int:
     if lacks:
         print(f"error: {a.ledger}: not a claims ledger (no column {', '.join(lacks)})", file=sys.stderr)
         return 1
+    sections = sorted({r["section"] for r in rows}, key=section_key)
+    for s in a.section or []:
+        if s not in sections:
+            raise UsageError(f"--section {s}: no such section in {a.ledger} "
+                             f"(sections: {', '.join(sections) or 'none'})")
     rows = [r for r in rows if (not a.section or r["section"] in a.section)
             and (not a.status or r["status"] in a.status)]
     print(count_line(rows))
@@ -679,6 +693,8 @@ def parser() -> argparse.ArgumentParser:
     la.add_argument("--port", required=True, help="serial port of the servo bus, e.g. /dev/ttyUSB0")
     la.add_argument("--out", required=True, help="the session folder (groups/, aborted/, takes/, <session>.yaml)")
     la.add_argument("--from", dest="from_group", metavar="GROUP", help="start at this group (never one recorded)")
+    la.add_argument("--session", help="only this session's groups (one of the plan's, e.g. s01)")
+    la.add_argument("--evidence-set", help="only this evidence set's groups (e.g. held_base)")
     la.add_argument("--baud", type=int, help="default: the plan's (1000000); one the XM430 supports")
     la.add_argument("--yes", action="store_true", help="do not wait for the operator before each group")
     la.set_defaults(fn=cmd_lab_acquire)
@@ -707,8 +723,7 @@ def parser() -> argparse.ArgumentParser:
 
     cl = sub.add_parser("claims", help="the claims ledger: every paper number beside ours, by section and status")
     cl.add_argument("--section", action="append", help="only this paper section, e.g. III-B (repeatable)")
-    cl.add_argument("--status", action="append", choices=["agrees", "differs", "not measured", "no paper value"],
-                    help="only claims with this status (repeatable)")
+    cl.add_argument("--status", action="append", help="only claims with this status, e.g. differs (repeatable)")
     cl.add_argument("--root", default=".")
     cl.add_argument("--ledger", default="results/tables/claims.csv")
     cl.set_defaults(fn=cmd_claims)

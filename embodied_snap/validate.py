@@ -5,14 +5,15 @@ with their config keys).
 validation jobs all call these functions, so they cannot disagree. The table rules are the
 schemas of rawschema.py; here are the rules that span files or need limits from config: time
 base, holes and dropouts in both logs, tracked-body coverage, physically impossible motion,
-labels and program per evidence set, format version. The first broken rule raises a
-RecordingError, one line naming the file, the group and the rule. Nothing downstream decides
-again whether a group is usable.
+labels and program per evidence set, format version, one recording in one group. The first
+broken rule raises a RecordingError, one line naming the file, the group and the rule. Nothing
+downstream decides again whether a group is usable.
 """
 
 from __future__ import annotations
 
 import csv
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -48,6 +49,7 @@ __all__ = [
     "TRACKED_BODIES",
     "read_index",
     "check_folders",
+    "check_one_recording",
     "validate_group",
     "validate_index",
     "validate_shard",
@@ -55,6 +57,9 @@ __all__ = [
 
 # Manifest names and group_paths' keys, in the manifest's order.
 _FILE_KEYS = [(name, name.split(".")[0]) for name in GROUP_FILES]
+# What a group recorded, as opposed to meta.json, which describes it (and names its group).
+RECORDINGS = tuple(name for name in GROUP_FILES if name.endswith(".parquet"))
+ONE_RECORDING_RULE = "one recording, one group"
 
 
 @dataclass(frozen=True)
@@ -381,6 +386,28 @@ def validate_index(raw_dir, limits: Limits, open_files: bool = True) -> pd.DataF
                 )
         read_meta_checked(paths["meta"], gid, row)
     return index
+
+
+def check_one_recording(entries) -> None:
+    """No recording in two groups: one file (a link inside the raw directory, a hard link) or one
+    content (a copied take) counted under two labels would enter a fit twice. `entries` are
+    manifest entries (validate_group's, a shard record's), in the gate's order; the later group of
+    the first pair that shares a mocap or servo log's sha256 is refused, naming the earlier one."""
+    held = {}
+    for e in entries:
+        for name in RECORDINGS:
+            f = e["files"][name]
+            gid, path = held.setdefault(f["sha256"], (e["group_id"], f["path"]))
+            if gid != e["group_id"]:
+                raise RecordingError(f["path"], e["group_id"], f"{_same(f['path'], path)} {path} of group {gid}",
+                                     ONE_RECORDING_RULE)
+
+
+def _same(a, b) -> str:
+    try:
+        return "the same file as" if os.path.samefile(a, b) else "the same bytes as"
+    except OSError:
+        return "the same bytes as"
 
 
 def validate_shard(

@@ -4,7 +4,9 @@ The workflow checks every group with validate.validate_group before any job may 
 bad recording stops the run before a single result is touched. Building the DAG happens on every
 `snakemake` call, so a passed group is remembered by what decides its verdict: its files' size
 and mtime (as Snakemake itself judges change), its index.csv row, the gate's limits and the
-gate's own code. A rebuild re-checks only groups whose key changed; a rejection is never cached.
+gate's own code, with its recordings' sha256, so the rule that no recording is in two groups
+reads no file of a remembered group. A rebuild re-checks only groups whose key changed; a
+rejection is never cached.
 """
 
 from __future__ import annotations
@@ -14,11 +16,11 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
-from .rawformat import group_paths, write_json
-from .validate import Limits, validate_group
+from .rawformat import GROUP_FILES, RecordingError, group_paths, write_json
+from .validate import ONE_RECORDING_RULE, RECORDINGS, Limits, check_one_recording, validate_group
 
-# The modules whose code decides a verdict.
-_CODE = ("validate.py", "rawschema.py", "rawformat.py", "io.py")
+# The modules whose code decides a verdict (this one: what a remembered pass holds).
+_CODE = ("validate.py", "rawschema.py", "rawformat.py", "io.py", "verdicts.py")
 
 
 class Verdicts:
@@ -29,39 +31,61 @@ class Verdicts:
         for name in _CODE:
             h.update((Path(__file__).parent / name).read_bytes())
         self.version = h.hexdigest()
-        self.passed: dict[str, str] = {}
-        self.seen: set[str] = set()  # passed in this process: one DAG build asks for a group many times
+        # gid -> its key and its recordings' sha256 (what the one-recording rule compares)
+        self.passed: dict[str, dict] = {}
+        self.seen: dict[str, dict] = {}  # passed in this process: its manifest entry
         if self.path and self.path.exists():
             try:
                 saved = json.loads(self.path.read_text())
                 if saved.get("version") == self.version:
-                    self.passed = dict(saved["passed"])
-            except (ValueError, KeyError, TypeError):
+                    self.passed = {g: v for g, v in saved["passed"].items() if _remembered(v)}
+            except (ValueError, KeyError, TypeError, AttributeError):
                 pass  # an unreadable cache is an empty one
 
-    def _key(self, gid: str) -> str | None:
+    def _stat(self, gid: str):
+        """Its files by name (GROUP_FILES) with their stats, or None: missing or outside the raw
+        directory (the gate says which)."""
         try:
-            st = [(s.st_size, s.st_mtime_ns) for s in (p.stat() for p in group_paths(self.raw, gid).values())]
+            return {name: (p, p.stat()) for name, p in zip(GROUP_FILES, group_paths(self.raw, gid).values())}
         except (OSError, ValueError):
-            return None  # missing or outside the raw directory: the gate says which
-        return hashlib.sha256(json.dumps([self.rows.get(gid), st], default=str).encode()).hexdigest()
+            return None
 
     def check(self, group_ids) -> None:
-        """Raise the gate's RecordingError for the first group that breaks a rule."""
-        new = False
-        for gid in group_ids:
+        """Raise the gate's RecordingError for the first group that breaks a rule: each group on its
+        own (a recording that is an earlier group's very file refused before it is read), then one
+        recording in one group over them all (validate.check_one_recording, on sha256)."""
+        ids, new, inodes = list(group_ids), False, {}
+        for gid in ids:
             if gid in self.seen:
                 continue
-            key = self._key(gid)
-            if key is not None and self.passed.get(gid) == key:
-                self.seen.add(gid)
-                continue
-            validate_group(self.raw, gid, self.rows.get(gid), limits=self.limits)
-            if key is not None:
-                self.passed[gid], new = key, True
-                self.seen.add(gid)
+            files = self._stat(gid)
+            for name in RECORDINGS if files else ():
+                p, s = files[name]
+                # size and mtime too: one file whatever a filesystem makes of its inode numbers
+                other = inodes.setdefault((s.st_dev, s.st_ino, s.st_size, s.st_mtime_ns), (gid, p))
+                if other[0] != gid:
+                    raise RecordingError(p, gid, f"the same file as {other[1]} of group {other[0]}", ONE_RECORDING_RULE)
+            st = [(s.st_size, s.st_mtime_ns) for _, s in files.values()] if files else None
+            key = st and hashlib.sha256(json.dumps([self.rows.get(gid), st], default=str).encode()).hexdigest()
+            hit = self.passed.get(gid)
+            if key and hit and hit["key"] == key:
+                entry = {"group_id": gid, "files": {n: {"path": str(files[n][0]), "sha256": hit["sha256"][n]}
+                                                    for n in RECORDINGS}}
+            else:
+                entry = validate_group(self.raw, gid, self.rows.get(gid), limits=self.limits)
+                if key:
+                    sha = {n: entry["files"][n]["sha256"] for n in RECORDINGS}
+                    self.passed[gid], new = {"key": key, "sha256": sha}, True
+            self.seen[gid] = entry
         if new and self.path:
             write_json({"version": self.version, "passed": self.passed}, self.path)
+        check_one_recording(self.seen[gid] for gid in ids)
+
+
+def _remembered(v) -> bool:
+    """A pass as check() writes it (anything else in the file is judged again)."""
+    return (isinstance(v, dict) and isinstance(v.get("key"), str) and isinstance(v.get("sha256"), dict)
+            and all(isinstance(v["sha256"].get(n), str) for n in RECORDINGS))
 
 
 def index_rows(raw_dir, plan, pattern: str) -> dict:

@@ -15,7 +15,7 @@ from embodied_snap import sealed
 from embodied_snap.lineage import policy as SEPARATION
 from embodied_snap.lineage.groups import deployment_dir
 from embodied_snap.lineage.imports import code_inputs
-from embodied_snap.lineage.records import per_shard_name
+from embodied_snap.lineage.records import job_environment, per_shard_name
 from embodied_snap.paper.sections import category as category_of
 from embodied_snap.plan import PlanError
 from embodied_snap.policy.evaluations import evaluations, training_targets
@@ -26,6 +26,11 @@ from embodied_snap.verdicts import gate_tree
 # A local run's scheduler without Snakemake's job rate limit, whose timers made the scheduler's own
 # CPU grow with every finished job (embodied_snap/scheduling.py).
 local_runs_without_rate_limit()
+
+# Every job's Python starts watching its reads before its script's first line (docs/lineage.md,
+# "From the interpreter's start"): jobs inherit this process's environment, on a cluster node too,
+# where the job's own snakemake reads this file again.
+os.environ.update(job_environment())
 
 RAW = config["raw_data"]["dir"]
 BUDGET = config["budgets"][config["budget"]]

@@ -168,6 +168,9 @@ def write_fake_group(
     """Write one valid group (mocap at mocap_hz); return its index.csv row."""
     t = t0 + np.arange(int(round(duration_s * mocap_hz)) + 1) / mocap_hz
     mocap = make_mocap(t, hz=mocap_hz, **kinematics)
+    # The target is placed by hand, a millimetre apart per seed: without noise, two groups would
+    # otherwise hold the same mocap bytes, one recording the gate refuses in two groups.
+    mocap["target_x"] += 0.001 * seed
     # The servo log starts a little before and ends a little after the mocap.
     servo = make_servo(t[0] - 0.03, t[-1] + 0.03, seed=seed)
     base_pos = kinematics.get("base_pos", BASE_POS)

@@ -281,6 +281,44 @@ def linked_inside(gid, which):
     return apply
 
 
+def copy_recordings(src, dst):
+    """A take copied into another group: dst's mocap and servo logs replaced by copies of src's
+    (`cp`), dst's meta.json and index row kept (row counts in step)."""
+
+    def apply(raw):
+        import shutil
+
+        for a, b in zip(_files(raw, src)[:2], _files(raw, dst)[:2]):
+            _replace(b, lambda t, a=a: shutil.copyfile(a, t))
+        _sync(raw, dst)
+
+    return apply
+
+
+def link_recording(src, dst, which):
+    """One of dst's logs replaced by a symlink to src's, inside the raw directory (a link allowed
+    as such, as a deduplicated store's are)."""
+
+    def apply(raw):
+        p = _files(raw, dst)["mocap servo".split().index(which)]
+        p.unlink()
+        p.symlink_to(Path("..", src, p.name))
+        _sync(raw, dst)
+
+    return apply
+
+
+def imported_twice(src, dst):
+    """The same take imported again under a new id: a new group whose recordings are src's bytes
+    and whose meta.json is src's under its own id, with its index row."""
+
+    def apply(raw):
+        copy_group(src, dst)(raw)
+        add_row(dst, like=src)(raw)
+
+    return apply
+
+
 def add_row(gid, like="att_0001"):
     return index(lambda i: pd.concat([i, i[i.group_id == like].assign(group_id=gid)]))
 
@@ -363,7 +401,7 @@ CORPUS = {
     # format and units
     "positions in millimetres": (
         mocap("dyn_0009", lambda d: d.assign(**{c: d[c] * 1000 for c in d if c[-2:] in ("_x", "_y", "_z")})),
-        (M, "dyn_0009", "positions in metres"),
+        (M, "dyn_0009", "bodies within 2 m of the base"),
     ),
     "NaN pose in a valid sample": (
         mocap("cal_0004", lambda d: d.assign(tip_y=np.where(d.index == 50, np.nan, d.tip_y))),
@@ -479,6 +517,19 @@ CORPUS = {
         (J, "rel_0001", "file inside the raw directory"),
     ),
     "groups/ linked outside": (groups_outside, ("", "att_0001", "group folder inside the raw directory")),
+    # one recording, one group: the same file or the same bytes under two labels
+    "take copied into another group": (
+        copy_recordings("att_0002", "att_0005"),
+        (M, "att_0005", "one recording, one group"),
+    ),
+    "take linked from another group": (
+        link_recording("cal_0002", "cal_0006", "mocap"),
+        (M, "cal_0006", "one recording, one group"),
+    ),
+    "same take imported twice": (
+        imported_twice("rel_0003", "rel_0097"),
+        (M, "rel_0097", "one recording, one group"),
+    ),
     # the sealed set
     "sealed group relabelled free_space": (
         relabel_sealed("dyn_0007", "free_space"),
@@ -506,4 +557,5 @@ BENIGN = [k for k, (_, want) in CORPUS.items() if want is None]
 TWIN = {
     "index row without files": (I, "att_0098", "index.csv matches the simulated rig's plan"),
     "sealed group relabelled free_space": (I, "dyn_0007", "index.csv matches the simulated rig's plan"),
+    "same take imported twice": (I, "rel_0097", "index.csv matches the simulated rig's plan"),
 }

@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
@@ -91,8 +92,8 @@ def test_motive_unlabelled_markers_with_millisecond_times_and_a_hungarian_start_
     take = read_motive_csv(lab / "motive123_mm_unlabeled_markers_360hz.csv")  # LF line endings
     assert take.start_time == "2023-11-28 10.27.58.765 DU."  # "DU." is Hungarian for PM
     assert (take.rate_hz, take.units, len(take.frame)) == (360.0, "Millimeters", 1353)
-    # line 9: the Time column rounded to 1 ms, where 1/360 s is 2.778 ms
-    assert take.t[1] == 0.003
+    # line 9: the Time column says 0.003, rounded to 1 ms; the clock is Frame / rate, 1/360 s
+    assert take.t[1] == 1 / 360 and take.t[-1] == 1352 / 360
     assert list(take.markers) == [f"Unlabeled {n}" for n in range(1036, 1054)]
     # line 8, cells 3-5
     assert xyz(take.markers["Unlabeled 1036"], 0) == pytest.approx([2.659741943, -0.830793884, -2.862191650])
@@ -100,6 +101,71 @@ def test_motive_unlabelled_markers_with_millisecond_times_and_a_hungarian_start_
     late = take.markers["Unlabeled 1051"]
     assert not late.valid[:348].any() and late.valid[348]
     assert xyz(late, 348) == pytest.approx([0.440624146, 1.471550049, 1.803150757])
+
+
+def test_the_360_hz_nmotive_export_keeps_a_constant_360_hz_clock(lab):
+    from embodied_snap.rawschema import _mocap_intervals_constant, _mocap_rate_in_range
+
+    path = lab / "motive123_mm_unlabeled_markers_360hz.csv"
+    take = read_motive_csv(path)
+    # its Time column steps 3, 3, 2, 3, ... ms (rounded): as a clock, intervals of 2 and 3 ms are no
+    # whole number of their median and the gate's constant-rate rule refuses it; Frame / 360 is exact
+    time = pd.read_csv(path, skiprows=7, header=None)[1].to_numpy(float)
+    assert list(time[:4]) == [0.0, 0.003, 0.006, 0.008] and not _mocap_intervals_constant(time)
+    assert np.diff(take.t) == pytest.approx(np.full(1352, 1 / 360), abs=1e-12)
+    assert _mocap_intervals_constant(take.t) and _mocap_rate_in_range(take.t)
+
+
+def shifted_time(src, dst, row, seconds):
+    """A copy of a Motive export with one data row's Time cell (its second) moved by `seconds`."""
+    lines = src.read_bytes().decode().split("\n")
+    axis = next(i for i, ln in enumerate(lines) if ln.startswith("Frame,"))
+    cells = lines[axis + 1 + row].split(",")
+    cells[1] = f"{float(cells[1]) + seconds:.6f}"
+    lines[axis + 1 + row] = ",".join(cells)
+    dst.write_bytes("\n".join(lines).encode())
+    return dst
+
+
+def test_a_time_column_more_than_half_a_millisecond_off_is_refused(lab, tmp_path):
+    # frame 1 of the 360 Hz export: Time 0.003 is 0.222 ms from 1/360 s; 0.004 is 1.222 ms from it
+    path = shifted_time(lab / "motive123_mm_unlabeled_markers_360hz.csv", tmp_path / "t.csv", 1, 0.001)
+    with pytest.raises(CaptureError) as e:
+        read_motive_csv(path)
+    assert str(e.value) == (f"{path}: frame 1: the Time column says 0.004000 s, Frame / Export Frame Rate "
+                            "0.002778 s (1.222 ms apart) (rule: Time is Frame / Export Frame Rate to within 0.5 ms)")
+
+
+def test_time_rounded_to_the_millisecond_at_its_worst_still_reads(lab, tmp_path):
+    # The 240 Hz export with Time rounded to 1 ms as NMotive writes it, every exact half (frames
+    # 3, 9, 15, ...: 12.5, 37.5 ms) rounded down: half a millisecond off, the most rounding leaves
+    src = lab / "motive123_m_single_rigidbody_240hz.csv"
+    lines = src.read_bytes().decode().split("\n")
+    axis = next(i for i, ln in enumerate(lines) if ln.startswith("Frame,"))
+    for i in range(axis + 1, len(lines)):
+        if lines[i].strip():
+            cells = lines[i].split(",")
+            sixths = int(cells[0]) * 25  # frame / 240 s in sixths of a millisecond
+            ms = sixths // 6 if sixths % 6 == 3 else (sixths + 2) // 6
+            cells[1] = f"{ms / 1e3:.3f}"
+            lines[i] = ",".join(cells)
+    path = tmp_path / "ms.csv"
+    path.write_bytes("\n".join(lines).encode())
+    assert lines[axis + 4].startswith("3,0.012,")
+    take = read_motive_csv(path)
+    assert take.t[3] == 3 / 240 and len(take.t) == 10460
+
+
+def test_a_take_in_local_coordinates_is_refused_with_the_reason(lab, tmp_path):
+    src = (lab / "motive123_m_rigidbody_mme_markerquality_120hz.csv").read_bytes()
+    assert src.count(b"Coordinate Space,Global") == 1
+    path = tmp_path / "local.csv"
+    path.write_bytes(src.replace(b"Coordinate Space,Global", b"Coordinate Space,Local"))
+    with pytest.raises(CaptureError) as e:
+        read_motive_csv(path)
+    assert str(e.value) == (f"{path}: Coordinate Space 'Local': a Local take puts each bone relative to its "
+                            "parent, not in the capture volume (rule: Coordinate Space Global (export with "
+                            "world coordinates))")
 
 
 def test_motive_timecode_column_in_centimetres(lab):
@@ -191,7 +257,8 @@ def without(meta, key):
         (META | {"Rotation Type": "XYZ"}, r"rotation type 'XYZ' \(rule: rotation type Quaternion\)"),
         (without(META, "Length Units"), r"no Length Units in the metadata row \(rule: length units given\)"),
         (META | {"Length Units": "Inches"}, r"length units 'Inches' \(rule: length units Millimeters"),
-        (META | {"Export Frame Rate": "200.000000"}, r"steps 0\.010000 s per frame, not 1/200 s \(rule: Time agrees"),
+        (META | {"Export Frame Rate": "200.000000"}, r"frame 1: the Time column says 0\.010000 s, Frame / Export "
+         r"Frame Rate 0\.005000 s \(5\.000 ms apart\) \(rule: Time is Frame / Export Frame Rate to within 0\.5 ms\)"),
     ],
     ids=["no-format-version", "version", "euler", "no-units", "inches", "rate-vs-time"],
 )
@@ -270,6 +337,17 @@ def test_c3d_qualisys(lab):
     assert all(m.valid.all() for m in take.markers.values())
 
 
+def test_a_truncated_c3d_is_refused(lab, tmp_path):
+    # ezc3d reads the frames a cut file holds and corrects its header to match: the file's own
+    # header (words 4 and 5) still declares frames 1-580
+    path = tmp_path / "cut.c3d"
+    path.write_bytes((lab / "ezc3d_Vicon.c3d").read_bytes()[:200_000])
+    with pytest.raises(CaptureError) as e:
+        read_c3d(path)
+    assert str(e.value) == (f"{path}: truncated: its header declares 580 frames (1-580), the file holds 48 "
+                            "(rule: a complete file)")
+
+
 def small_c3d(tmp_path, labels, units="mm"):
     ezc3d = pytest.importorskip("ezc3d")
     c = ezc3d.c3d()
@@ -312,7 +390,7 @@ def place(layout, rotation, p):
 def test_a_known_pose_is_recovered_from_noiseless_markers():
     r = Rotation.from_rotvec([[0.3, -1.2, 2.0], [0.0, 0.0, 0.0]])
     p = np.array([[0.5, 1.0, -0.2], [0.0, 0.0, 0.0]])
-    got_p, got_q, valid = fit_pose(LAYOUT, place(LAYOUT, r, p))
+    got_p, got_q, valid, _ = fit_pose(LAYOUT, place(LAYOUT, r, p))
     expected = r.as_quat(scalar_first=True)
     expected *= np.where(expected[:, :1] < 0, -1, 1)
     assert valid.all()
@@ -324,7 +402,7 @@ def test_fewer_than_three_markers_seen_is_invalid():
     layout = LAYOUT[:3]
     observed = place(layout, Rotation.from_rotvec([[0.1, 0.2, 0.3]] * 2), np.zeros((2, 3)))
     observed[1, 0] = np.nan  # frame 1: 2 of 3 markers
-    p, q, valid = fit_pose(layout, observed)
+    p, q, valid, _ = fit_pose(layout, observed)
     assert list(valid) == [True, False]
     assert np.isnan(p[1]).all() and np.isnan(q[1]).all()
     assert np.isfinite(p[0]).all() and np.isfinite(q[0]).all()
@@ -336,7 +414,7 @@ def test_the_reflection_fix_coplanar_markers_give_the_rotation_not_its_mirror():
     layout = LAYOUT[:3]
     r = Rotation.random(64, random_state=3)
     p = np.random.default_rng(3).normal(size=(64, 3))
-    got_p, got_q, valid = fit_pose(layout, place(layout, r, p))
+    got_p, got_q, valid, _ = fit_pose(layout, place(layout, r, p))
     expected = r.as_quat(scalar_first=True)
     expected *= np.where(expected[:, :1] < 0, -1, 1)
     assert valid.all()

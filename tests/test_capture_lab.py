@@ -20,6 +20,8 @@ from embodied_snap.capture.errors import CaptureError
 from embodied_snap.capture.lab import load_lab
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "examples" / "lab.yaml"
+LABFORMATS = Path(__file__).resolve().parents[2] / "shared" / "labformats"
+RESIDUAL_M = yaml.safe_load((EXAMPLE.parents[2] / "config.yaml").read_text())["capture"]["max_marker_residual_mm"] / 1e3
 NAN = float("nan")
 
 LAB = {
@@ -96,10 +98,10 @@ def test_two_markers(tmp_path):
 @pytest.mark.parametrize(
     "body, rule",
     [
-        ({}, "bodies.tip: needs rigid_body or at least 3 markers"),
-        ("Tip", "bodies.tip: needs rigid_body or at least 3 markers"),
+        ({}, "bodies.tip: needs rigid_body, bone or at least 3 markers"),
+        ("Tip", "bodies.tip: needs rigid_body, bone or at least 3 markers"),
         ({"rigid_body": "Tip", "markers": {"a": [0, 0, 0], "b": [1, 0, 0], "c": [0, 1, 0]}},
-         "bodies.tip: rigid_body or markers, not both"),
+         "bodies.tip: one of rigid_body, bone or markers"),
         ({"markers": {"a": [0, 0], "b": [1, 0, 0], "c": [0, 1, 0]}},
          "bodies.tip.markers.a: a marker is [x, y, z] in the body frame, in metres"),
         ({"markers": {1: [0, 0, 0], "b": [1, 0, 0], "c": [0, 1, 0]}},
@@ -196,13 +198,13 @@ def test_body_pose_from_markers(tmp_path):
     # m1 (0.02, 0, 0) -> (0.1, 0.2, 0.28), m2 (0, 0.03, 0) -> (0.1, 0.23, 0.3),
     # m3 (0, 0, 0.04) -> (0.14, 0.2, 0.3); as a Z-up capture writes them, (x, -z, y) of those.
     # Frame 1 has m3 occluded: two markers, no pose.
-    take = SimpleNamespace(path=Path("take.c3d"), markers={
+    take = SimpleNamespace(path=Path("take.c3d"), t=np.array([0.0, 0.01]), markers={
         "m1": markers([[0.1, -0.28, 0.2], [0.1, -0.28, 0.2]]),
         "m2": markers([[0.1, -0.3, 0.23], [0.1, -0.3, 0.23]]),
         "m3": markers([[0.14, -0.3, 0.2], [NAN, NAN, NAN]]),
         "other": markers([[9.0, 9.0, 9.0], [9.0, 9.0, 9.0]]),
     })
-    p, q, valid = lab.body_pose(take, "tip")
+    p, q, valid = lab.body_pose(take, "tip", RESIDUAL_M)
     assert valid.tolist() == [True, False]
     assert p[0] == pytest.approx([0.1, 0.2, 0.3], abs=1e-9)
     assert same_rotation(q[0], [0.7071067811865476, 0.0, 0.7071067811865476, 0.0])  # cos 45, 0, sin 45, 0
@@ -222,7 +224,7 @@ def test_body_pose_from_a_rigid_body(tmp_path):
         "valid": [True, True, False],
     })
     take = SimpleNamespace(path=Path("take.csv"), rigid_bodies={"S1": body}, markers={})
-    p, q, valid = lab.body_pose(take, "s1")
+    p, q, valid = lab.body_pose(take, "s1", RESIDUAL_M)
     assert valid.tolist() == [True, True, False]
     assert p[:2] == pytest.approx(np.array([[1.0, 3.0, -2.0], [0.1, 0.3, -0.2]]))
     assert same_rotation(q[0], [c, -c, 0.0, 0.0])
@@ -234,8 +236,119 @@ def test_body_pose_names_what_the_take_lacks(tmp_path):
     lab = load_lab(write(tmp_path))
     take = SimpleNamespace(path=Path("take.csv"), rigid_bodies={}, markers={"m1": markers([[0.0, 0, 0]])})
     with pytest.raises(CaptureError, match=r"^take\.csv: no rigid body 'S1' \(the lab file's s1\) \(rule: [^()]+\)$"):
-        lab.body_pose(take, "s1")
+        lab.body_pose(take, "s1", RESIDUAL_M)
     with pytest.raises(CaptureError, match=r"^take\.csv: no marker 'm2' \(the lab file's tip\) \(rule: [^()]+\)$"):
-        lab.body_pose(take, "tip")
+        lab.body_pose(take, "tip", RESIDUAL_M)
     with pytest.raises(CaptureError, match=r"lab\.yaml: bodies: no 'target' \(it names base, s1, s2, tip\) \(rule: "):
-        lab.body_pose(take, "target")
+        lab.body_pose(take, "target", RESIDUAL_M)
+
+
+# --- two arm bodies on one capture body ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "edit, what",
+    [
+        (lambda d: d["bodies"].update(s2={"rigid_body": "S1"}), "bodies.s1 and bodies.s2 both map to rigid body 'S1'"),
+        (lambda d: d["bodies"].update(base={"bone": "Arm"}, s2={"bone": "Arm"}),
+         "bodies.base and bodies.s2 both map to bone 'Arm'"),
+        (lambda d: d["bodies"].update(target={"markers": {"m1": [0.0, 0.0, 0.0], "t2": [0.02, 0.0, 0.0],
+                                                          "t3": [0.0, 0.02, 0.0]}}),
+         "bodies.tip and bodies.target both map to marker 'm1'"),
+    ],
+    ids=["rigid-body", "bone", "marker"],
+)
+def test_two_arm_bodies_on_one_capture_body(tmp_path, edit, what):
+    # the arm would read as zero length between them: the lab file is refused, naming both
+    assert refused(tmp_path, edit) == what
+
+
+def test_a_rigid_body_and_a_bone_of_one_name_are_two_bodies(tmp_path):
+    lab = load_lab(write(tmp_path, lambda d: d["bodies"].update(s2={"bone": "S1"})))
+    assert lab.bodies["s2"] == {"bone": "S1"}
+
+
+# --- real exports (read from ../shared/labformats; skipped where absent) ---------------------------
+
+
+@pytest.fixture
+def real():
+    if not LABFORMATS.is_dir():
+        pytest.skip("the real capture exports are not on this machine")
+    return LABFORMATS
+
+
+def as_bones(real, tmp_path):
+    """motive123_m_single_rigidbody_240hz.csv with its Rigid Body written as a skeleton's Bone."""
+    path = tmp_path / "bones.csv"
+    text = (real / "motive123_m_single_rigidbody_240hz.csv").read_bytes().decode()
+    path.write_bytes(text.replace(",Type,Rigid Body,", ",Type,Bone,").replace(",Rigid Body", ",Bone").encode())
+    return path
+
+
+def y_up(**bodies):
+    return lambda d: (d["capture"].update(axes="y_up"), d["bodies"].update(bodies))
+
+
+def test_a_bone_maps_like_a_rigid_body(real, tmp_path):
+    from embodied_snap.capture.motive import read_motive_csv
+
+    take = read_motive_csv(as_bones(real, tmp_path))
+    assert take.rigid_bodies == {} and list(take.bones) == ["RigidBody"]
+    lab = load_lab(write(tmp_path, y_up(s1={"bone": "RigidBody"})))
+    p, q, valid = lab.body_pose(take, "s1", RESIDUAL_M)
+    # line 8 of the export: X, Y, Z, W then the position, in metres; y_up keeps them as they are
+    assert p[0] == pytest.approx([0.047597, 0.607298, 0.329784])
+    assert same_rotation(q[0], [-0.163966, 0.715879, 0.252092, -0.630144])
+    assert valid.all() and len(valid) == 10460
+
+
+def test_a_bone_named_as_a_rigid_body_is_answered_as_a_bone(real, tmp_path):
+    from embodied_snap.capture.motive import read_motive_csv
+
+    take = read_motive_csv(as_bones(real, tmp_path))
+    lab = load_lab(write(tmp_path, y_up(s1={"rigid_body": "RigidBody"})))
+    with pytest.raises(CaptureError) as e:
+        lab.body_pose(take, "s1", RESIDUAL_M)
+    assert e.value.what == ("no rigid body 'RigidBody' (the lab file's s1): the take holds it as a Bone "
+                            "(map it with bone: RigidBody)")
+
+
+MARKERS = [f"ernesto_body:Marker{i}" for i in range(1, 5)]
+
+
+def cluster(real, order=(0, 1, 2, 3)):
+    """The 120 Hz export's four measured markers as a layout: Motive's own rigid-body markers (its
+    solver's ideal positions) at frame 0, about their centre; `order` relabels them."""
+    from embodied_snap.capture.motive import read_motive_csv
+
+    take = read_motive_csv(real / "motive123_m_rigidbody_mme_markerquality_120hz.csv")
+    ideal = np.array([take.body_markers[m].loc[0, ["x", "y", "z"]].to_numpy(float) for m in MARKERS])
+    layout = ideal - ideal.mean(0)
+    return take, {MARKERS[i]: [float(v) for v in layout[j]] for i, j in zip(range(4), order)}
+
+
+def test_a_marker_cluster_within_the_residual_limit_fits(real, tmp_path):
+    take, layout = cluster(real)
+    lab = load_lab(write(tmp_path, y_up(tip={"markers": layout})))
+    p, q, valid = lab.body_pose(take, "tip", RESIDUAL_M)
+    # every frame sees the four markers (frame 4 blanks the solved body, not them); the fit moves as
+    # Motive's own rigid body does: their centres keep one offset to within the markers' ~1 mm
+    assert valid.all()
+    body = take.rigid_bodies["ernesto_body"]
+    ok = body.valid.to_numpy()
+    offset = p[ok] - body.loc[ok, ["x", "y", "z"]].to_numpy(float)
+    assert np.abs(offset - offset[0]).max() < 2e-3
+
+
+def test_a_marker_cluster_past_the_residual_limit_is_refused(real, tmp_path):
+    # Marker1 and Marker2 labelled the wrong way round in the lab file: no pose fits both
+    take, layout = cluster(real, order=(1, 0, 2, 3))
+    lab = load_lab(write(tmp_path, y_up(tip={"markers": layout})))
+    with pytest.raises(CaptureError) as e:
+        lab.body_pose(take, "tip", RESIDUAL_M)
+    assert str(e.value).startswith(f"{take.path}: the lab file's tip markers fit its layout to ")
+    assert e.value.rule == f"marker fit residual <= {RESIDUAL_M * 1e3:g} mm (config capture.max_marker_residual_mm)"
+    assert "\n" not in str(e.value)
+    # the same layout with a limit above its worst frame passes (the limit is what decides)
+    assert lab.body_pose(take, "tip", 0.1)[2].all()

@@ -274,6 +274,33 @@ def test_claims_into_head_is_quiet(tmp_path):
     assert r.stderr == "" and r.stdout.count("\n") == 1 and r.returncode == 141, r
 
 
+def test_claims_filters_name_the_sections_and_statuses_there_are(cwd, capsys):
+    """A section the ledger does not hold, or a status no claim can have, is one line (exit 2) naming
+    those there are, not "0 paper numbers"; every status a row can have is a filter."""
+    from embodied_snap.paper import ledger
+
+    (cwd / "results/tables").mkdir(parents=True)
+    with open(cwd / "results/tables/claims.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, ledger.COLUMNS)
+        w.writeheader()
+        for k, (sec, status) in enumerate([("IV-A", ledger.AGREES), ("III-B", ledger.BY_CONSTRUCTION),
+                                           ("III-A", ledger.DIFFERS), ("III-B", ledger.NO_PAPER)]):
+            w.writerow(dict.fromkeys(ledger.COLUMNS, "") | dict(claim_id=f"c{k}", section=sec, status=status))
+    for argv, says in ((["--section", "nosuch"], "--section nosuch: no such section in results/tables/claims.csv "
+                        "(sections: III-A, III-B, IV-A)"),
+                       (["--section", "III-B", "--section", "V"], "--section V: no such section in "
+                        "results/tables/claims.csv (sections: III-A, III-B, IV-A)"),
+                       (["--status", "nosuch"], "--status nosuch: no such claim status (statuses: agrees, differs, "
+                        "by construction, not measured, no paper value)")):
+        rc, err = esnap(capsys, ["claims", *argv])
+        assert rc == 2 and err == [f"esnap claims: error: {says}"], (argv, rc, err)
+    for status in ledger.STATUSES:
+        assert esnap(capsys, ["claims", "--status", status])[0] == 0
+    rc = cli.main(["claims", "--section", "III-B", "--status", "by construction"])
+    out = capsys.readouterr().out.splitlines()
+    assert rc == 0 and len(out) == 2 and out[1].split()[:2] == ["III-B", "c1"], out
+
+
 def test_a_bug_is_one_line_or_its_traceback(cwd, capsys, monkeypatch):
     """The catch-all: an exception no command expects is one line; ESNAP_DEBUG=1 lets it through."""
     from embodied_snap.paper import ledger

@@ -89,9 +89,9 @@ def _man(p):
     return json.loads(Path(p).read_text())
 
 
-def _serve_bus(conn, man, faults):
+def _serve_bus(conn, man, faults, rest=None):
     st = Stepper(dict(M.NOMINAL), dict(rate=[3100.0] * 9, tau=[0.03] * 9), 0.001, TR.LATCH)
-    bus = VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults)
+    bus = VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults, rest=rest)
     conn.send(bus.start())
     while True:
         cmd = conn.recv()
@@ -112,10 +112,10 @@ class _Bus:
     """The virtual bus in its own process, as the workflow's rig runs it (the client's polling and the
     bus's physics do not share one interpreter); what it did is read back from it."""
 
-    def __init__(self, man: dict, faults=None):
+    def __init__(self, man: dict, faults=None, rest=None):
         ctx = mp.get_context("fork")
         self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_serve_bus, args=(child, man, faults), daemon=True)
+        self.proc = ctx.Process(target=_serve_bus, args=(child, man, faults, rest), daemon=True)
         self.state = None
 
     def __enter__(self):
@@ -155,8 +155,8 @@ class _Bus:
         raise AttributeError(k)
 
 
-def _bus(man: dict, faults=None) -> _Bus:
-    return _Bus(man, faults)
+def _bus(man: dict, faults=None, rest=None) -> _Bus:
+    return _Bus(man, faults, rest)
 
 
 def _settle(bus, done, within_s=5.0):
@@ -178,9 +178,9 @@ def _stopped_and_stepped_on(bus):
     return _all_stopped(bus) and len(bus.stepper.rows) * bus.stepper.dt > max(bus.stopped_at.values()) + 0.1
 
 
-def _run(man_path, out, faults=None, target=None, linger=0.05, done=lambda bus: True):
+def _run(man_path, out, faults=None, target=None, linger=0.05, done=lambda bus: True, rest=None):
     man = _man(man_path)
-    with _bus(man, faults) as bus:
+    with _bus(man, faults, rest) as bus:
         try:
             client.run(man_path, bus.port, target or man["placements"][1]["target_m"], out=out, say=lambda s: None)
             cause = None
@@ -490,8 +490,8 @@ def test_no_placement_is_refused_by_its_own_manifest():
 
 def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
     """Lab trials (docs/deployment.md): `esnap deploy-index` puts a complete trial that passes the
-    gate into index.csv, and lists an abort record and a trial without the operator's labels in
-    aborted.json with their cause."""
+    gate into index.csv, and lists an abort record, a trial without the operator's labels and a copy
+    of the complete trial under another id (one recording, one trial) in aborted.json with their cause."""
     import shutil
 
     import pandas as pd
@@ -509,6 +509,9 @@ def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
     meta["group_id"] = "dep_0090"
     del meta["labels"]["retrieved"]  # the operator did not label it
     meta_path.write_text(json.dumps(meta))
+    shutil.copytree(raw / "groups" / gid, raw / "groups" / "dep_0092")  # the same take, labelled again
+    meta = json.loads((raw / "groups/dep_0092/meta.json").read_text())
+    (raw / "groups/dep_0092/meta.json").write_text(json.dumps(dict(meta, group_id="dep_0092")))
     (raw / "aborted").mkdir(exist_ok=True)
     (raw / "aborted/dep_0091.json").write_text(json.dumps(dict(group_id="dep_0091", cause="timeout: no reply")))
     # the bus shares a loaded test machine with the client: a late sync-read is not what this is about
@@ -516,9 +519,11 @@ def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
     cfg["gate"]["max_servo_gap_s"] = 1.0
     (tmp_path / "config.yaml").write_text(yaml.safe_dump(cfg))
     assert main(["deploy-index", "--raw", str(raw), "--configfile", str(tmp_path / "config.yaml"),
-                 "--planned", "4"]) == 0
+                 "--planned", "5"]) == 0
     assert pd.read_csv(raw / "index.csv").group_id.tolist() == [gid]
     ab = json.loads((raw / "aborted.json").read_text())
     causes = {a["group_id"]: a["cause"] for a in ab["aborted"]}
-    assert (ab["planned"], ab["recorded"]) == (4, 1) and causes["dep_0091"] == "timeout: no reply"
+    assert (ab["planned"], ab["recorded"]) == (5, 1) and causes["dep_0091"] == "timeout: no reply"
+    assert f"the same bytes as {raw}/groups/{gid}/mocap.parquet of group {gid}" in causes["dep_0092"]
+    assert "(rule: one recording, one group)" in causes["dep_0092"]
     assert "labels has no 'retrieved'" in causes["dep_0090"] and "meta.json: group dep_0090" in causes["dep_0090"]

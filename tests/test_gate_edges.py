@@ -503,8 +503,21 @@ def test_a_category_entry_overrides_its_sets_labels(tmp_path):
 
 
 def test_positions_of_bodies_never_tracked_are_within_any_limit():
-    """The fast path's range check on a frame with no tracked position at all (every body lost):
-    nothing is out of range, so the dropout rule, not a crash, refuses the recording."""
-    assert RS._within(np.full((4, 5, 3), np.nan), 5.0)
-    assert RS._within(np.array([np.nan, 5.0, -5.0]), 5.0)
-    assert not RS._within(np.array([np.nan, 5.001]), 5.0)
+    """The fast path's distance-from-the-base check on a frame with no tracked position at all
+    (every body lost): nothing is out of range, so the dropout rule, not a crash, refuses the
+    recording; tracked, the limit itself passes and a millimetre past it does not."""
+    from embodied_snap.rawformat import BODIES, mocap_columns
+
+    cols = {"t": np.arange(10) / 240.0}
+    for b in BODIES:
+        cols.update({f"{b}_{f}": np.full(10, np.nan) for f in ("x", "y", "z", "qw", "qx", "qy", "qz")})
+        cols[f"{b}_valid"] = np.zeros(10, bool)
+    lost = pd.DataFrame(cols)[mocap_columns()]
+    assert RS._mocap_passes(lost)
+    tracked = lost.copy()
+    for b in ("base", "tip"):
+        tracked[[f"{b}_{f}" for f in ("x", "y", "z", "qw", "qx", "qy", "qz")]] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]
+        tracked[f"{b}_valid"] = True
+    tracked["tip_y"] = -RS.MAX_FROM_BASE_M
+    assert RS._mocap_passes(tracked)
+    assert not RS._mocap_passes(tracked.assign(tip_y=-RS.MAX_FROM_BASE_M - 0.001))

@@ -181,6 +181,7 @@ def test_a_fault_stops_the_arm_marks_that_group_and_a_resumed_session_records_ex
     lab = SimLab(plan_path, tmp_path, stop_after=1)
     assert lab.acquire()["recorded"] == [second] and set(lab.ran) == {second}
     assert fingerprint(tmp_path, first) == kept
+    assert not (tmp_path / "aborted" / f"{second}.json").exists()  # recorded: no longer marked aborted
 
 
 def test_a_log_the_gate_would_refuse_is_kept_aside_and_the_group_run_again(plan_path, tmp_path, monkeypatch):

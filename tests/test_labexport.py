@@ -245,7 +245,7 @@ def test_c3d_markers_fit_back_to_the_poses(group, tmp_path):
         np.testing.assert_allclose(lab.to_lab_frame(xyz(table))[seen], out.markers[label][seen], atol=2e-7)
     k, bound = 4, noise / np.sqrt(4)
     for body in BODIES:
-        p, q, valid = lab.body_pose(take, body)
+        p, q, valid = lab.body_pose(take, body, 10 * noise)  # RMS over the markers: ~ the noise
         tp, tq, tv = (a[::2] for a in native(mocap, body))
         seen = np.stack([take.markers[f"{DEFAULT_NAMES[body]}:M{j}"]["valid"] for j in range(1, 5)], 1)
         np.testing.assert_array_equal(valid, tv & (seen.sum(1) >= 3))

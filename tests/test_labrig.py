@@ -14,6 +14,7 @@ from embodied_snap.acquisition import draws as D
 from embodied_snap.acquisition import programs as P
 from embodied_snap.deploy import client
 from embodied_snap.deploy import controltable as CT
+from embodied_snap.deploy import manifest as MF
 from embodied_snap.plan import twin_plan
 from embodied_snap.twin.labrig import LabRig
 
@@ -41,7 +42,8 @@ def _man(goals: np.ndarray) -> dict:
     gmin, gmax = np.floor(lo - pad).astype(int), np.ceil(hi + pad).astype(int)
     return dict(servos=dict(ids=list(range(1, 10)), model_number=CT.XM430_W350,
                             operating_mode=CT.EXTENDED_POSITION_MODE, hz=100, watchdog_ms=100,
-                            reply_timeout_ms=20, reply_retries=3),
+                            reply_timeout_ms=20, reply_retries=3,
+                            start=MF.start(CONFIG["deployment"], PROTO.rig.rated_speed_tick_s)),
                 envelope=dict(eeprom_min=(gmin - 500).tolist(), eeprom_max=(gmax + 500).tolist(),
                               goal_min=gmin.tolist(), goal_max=gmax.tolist()))
 

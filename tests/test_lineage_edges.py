@@ -74,7 +74,7 @@ def test_a_watch_already_running_keeps_what_it_saw(tmp_path, fresh_watch):
     (tmp_path / "results" / "a").write_text("x")
     R._watch()
     (tmp_path / "results" / "a").read_text()
-    R._watch()  # a second start (the job's `tracked` after the import-time watch)
+    R._watch()  # a second start (the job's `tracked` after the start-up hook's watch)
     assert R._stop_watching(tmp_path) == ["results/a"]
 
 
@@ -125,14 +125,34 @@ def test_an_undeclared_module_fails_with_its_rule():
                          "raw_data")
 
 
-def test_check_watched_names_the_first_module_loaded_early(monkeypatch):
-    monkeypatch.setattr(R, "_early", [])
+def test_check_watched_fails_a_job_whose_watch_did_not_begin_at_its_start(monkeypatch):
+    monkeypatch.setattr(R, "_from_start", False)
+    R.check_watched("r")  # not a job (pytest): nothing to say
+    main = types.ModuleType("__main__")
+    main.snakemake = object()
+    monkeypatch.setitem(sys.modules, "__main__", main)
+    with pytest.raises(R.UndeclaredInput, match=r"^workflow_scripts/fit\.py: run by rule r without the watch from "
+                       r"its start \(rule: a job's reads are watched from its interpreter's start by "
+                       r"embodied_snap/lineage/startup/sitecustomize\.py, which the workflow puts on its jobs' "
+                       r"PYTHONPATH, docs/lineage\.md\)$"):
+        R.check_watched("r", "workflow_scripts/fit.py")
+    monkeypatch.setattr(R, "_from_start", True)
     R.check_watched("r")
-    monkeypatch.setattr(R, "_early", ["embodied_snap/io.py", "embodied_snap/fit.py"])
-    with pytest.raises(R.UndeclaredInput, match=r"^embodied_snap/io\.py: loaded by rule r before its reads were "
-                       r"watched \(rule: a workflow script's first statement is `from embodied_snap\.lineage "
-                       r"import records`, docs/lineage\.md\)$"):
-        R.check_watched("r")
+
+
+def test_the_start_up_hook_starts_the_watch_and_says_so(monkeypatch, fresh_watch):
+    monkeypatch.setattr(R, "_from_start", False)
+    R.watch_from_start()
+    assert R._from_start is True and R._opened == set()
+
+
+def test_the_job_environment_puts_the_hook_first_once():
+    hook = str(R.STARTUP)
+    assert (R.STARTUP / "sitecustomize.py").is_file()
+    assert R.job_environment({}) == {"PYTHONPATH": hook}
+    env = R.job_environment({"PYTHONPATH": os.pathsep.join(["/a", "", "/b"])})
+    assert env == {"PYTHONPATH": os.pathsep.join([hook, "/a", "/b"])}
+    assert R.job_environment(env) == env  # the Snakefile read twice in one process
 
 
 def test_in_job_is_snakemakes_preamble_in_main(monkeypatch):

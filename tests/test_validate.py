@@ -278,7 +278,7 @@ CORPUS = {
     "time going backwards": (time_backwards, "mocap", "t strictly increasing"),
     "duplicate timestamps": (duplicate_timestamps, "mocap", "t strictly increasing"),
     "mocap at 30 Hz": (mocap_rate_30hz, "mocap", "mocap rate constant, 100-500 Hz"),
-    "positions in mm": (positions_in_mm, "mocap", "positions in metres"),
+    "positions in mm": (positions_in_mm, "mocap", "bodies within 2 m of the base"),
     "non-unit quaternion": (non_unit_quaternion, "mocap", "unit tip quaternions"),
     "t as integer milliseconds": (t_integer_milliseconds, "mocap", "column dtype"),
     "valid flag not bool": (valid_flag_not_bool, "mocap", "column dtype"),

@@ -3,10 +3,16 @@
 Only the 3D points are read: analog channels, force plates and events are left to their own
 readers. ezc3d applies POINT:SCALE (a negative scale means float storage) and marks a point
 whose residual is negative as NaN; both count as occluded here, as a negative residual does.
+
+A file cut short is refused: ezc3d reads the frames that are there and rewrites the header's
+count to match, so the count the file declares is read from its own header (words 4 and 5: the
+first and last frame) and compared with the frames read. Past 65,535 frames that word saturates
+and is a lower bound, still one a complete file reaches.
 """
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +23,8 @@ import pandas as pd
 from .errors import CaptureError
 
 TO_METRES = {"mm": 1e-3, "cm": 1e-2, "m": 1.0}
+# The parameter section's processor type (its 4th byte, 83 + type): MIPS writes big-endian words
+BIG_ENDIAN = 86
 
 
 @dataclass(frozen=True, eq=False)
@@ -49,6 +57,13 @@ def read_c3d(path: str | Path) -> MarkerTake:
     if not rate > 0:
         raise CaptureError(path, "no positive POINT:RATE", "a capture rate in the file")
     xyz = c["data"]["points"][:3] * TO_METRES[units]  # (3, points, frames)
+    first, last = _declared_frames(path)
+    if xyz.shape[2] < last - first + 1:
+        raise CaptureError(
+            path,
+            f"truncated: its header declares {last - first + 1} frames ({first}-{last}), the file holds {xyz.shape[2]}",
+            "a complete file",
+        )
     residual = c["data"]["meta_points"]["residuals"][0]
     markers = {}
     for i, label in enumerate(labels):
@@ -64,6 +79,15 @@ def read_c3d(path: str | Path) -> MarkerTake:
         t=np.arange(xyz.shape[2]) / rate,
         markers=markers,
     )
+
+
+def _declared_frames(path):
+    """(first, last) frame as the file's header declares them, before ezc3d corrects them."""
+    with open(path, "rb") as f:
+        head = f.read(512)
+        f.seek((head[0] - 1) * 512 + 3)  # byte 1: the parameter section's first 512-byte block
+        order = ">" if f.read(1) == bytes([BIG_ENDIAN]) else "<"
+    return struct.unpack(order + "HH", head[6:10])
 
 
 def _labels(point):

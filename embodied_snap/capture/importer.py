@@ -196,9 +196,9 @@ def read_take(path: Path):
     raise CaptureError(path, f"suffix {path.suffix!r}", "a Motive CSV (.csv) or a C3D (.c3d)")
 
 
-def mocap_table(take, lab: Lab) -> pd.DataFrame:
+def mocap_table(take, lab: Lab, max_residual_m: float) -> pd.DataFrame:
     """The take in the format's mocap columns: t from the take's first frame, every body in the
-    lab frame, quaternions with w >= 0."""
+    lab frame, quaternions with w >= 0; a marker fit may leave at most max_residual_m."""
     lo, hi = RF.MOCAP_HZ_RANGE
     if not lo <= take.rate_hz <= hi:
         raise CaptureError(take.path, f"captured at {take.rate_hz:g} Hz", f"capture rate {lo:g}-{hi:g} Hz")
@@ -209,7 +209,7 @@ def mocap_table(take, lab: Lab) -> pd.DataFrame:
         if body not in lab.bodies:  # only target may be absent (the lab file's schema)
             p, q, v = np.full((len(take.t), 3), np.nan), np.full((len(take.t), 4), np.nan), np.zeros(len(take.t), bool)
         else:
-            p, q, v = lab.body_pose(take, body)
+            p, q, v = lab.body_pose(take, body, max_residual_m)
             q = _hemisphere(q)
         for i, a in enumerate("xyz"):
             cols[f"{body}_{a}"] = np.where(v, p[:, i], np.nan)
@@ -368,7 +368,7 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
     """(meta, mocap, servo) of one take, in the recording format."""
     max_gap_s = config["resample"]["max_gap_s"]
     take = read_take(spec.mocap)
-    mocap = mocap_table(take, lab)
+    mocap = mocap_table(take, lab, config["capture"]["max_marker_residual_mm"] * 1e-3)
     servo_raw = servo_table(spec.servo, lab)
     if len(servo_raw) < 2 or not np.all(np.diff(servo_raw["t"].to_numpy(float)) > 0):
         raise CaptureError(spec.servo, "t is not strictly increasing", "t strictly increasing")
@@ -443,6 +443,30 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+def check_not_imported(specs, raw: Path, group_ids) -> None:
+    """A take is imported once: refused when its export's bytes are those of the take a group of
+    raw was imported from (its meta.json's capture.sha256), whatever the group's id, or of another
+    take of this session."""
+    from ..validate import ONE_RECORDING_RULE
+
+    held = {}  # an export's sha256 -> where it already is
+    for gid in sorted(group_ids):
+        try:
+            sha = RF.read_meta(RF.group_paths(raw, gid)["meta"]).get("capture", {}).get("sha256")
+        except (OSError, ValueError, AttributeError):
+            continue  # not an imported group, or a broken one: the gate names it
+        if sha:
+            held.setdefault(sha, f"already imported as group {gid} in {raw}")
+    for s in specs:
+        try:
+            sha = _sha256(s.mocap)
+        except OSError:
+            continue  # building the take says what is wrong with it
+        if sha in held:
+            raise ImportRefused(f"{s.mocap}: take {s.meta['group_id']}: {held[sha]} (rule: {ONE_RECORDING_RULE})")
+        held[sha] = f"the same export as take {s.meta['group_id']} of this session"
+
+
 # --- the session ------------------------------------------------------------------------------------
 
 
@@ -457,6 +481,7 @@ def import_session(session_path, lab: Lab, raw_dir, config: dict, progress=None)
     existing = read_index(raw, pattern) if (raw / "index.csv").exists() else None
     have = set(existing.group_id) if existing is not None else set()
     have |= {p.name for p in (raw / "groups").glob("*")} if (raw / "groups").is_dir() else set()
+    check_not_imported(specs, raw, have)
     for s in specs:
         if s.meta["group_id"] in have:
             raise ImportRefused(

@@ -3,8 +3,13 @@
 One YAML file per rig, written once (docs/examples/lab.yaml), validated against
 schemas/lab.schema.yaml with Snakemake's `validate`, as the config is. After the schema, the
 checks it cannot make: servo ids given twice, axes that are not a proper rotation, a number that is
-not finite, and three markers of one layout on a line. Every refusal is one CaptureError line
-naming the file, the key and the rule.
+not finite, three markers of one layout on a line, and two of the arm's bodies on one capture body
+(one rigid body, one bone, or one marker in two layouts: the arm would read as zero length there).
+Every refusal is one CaptureError line naming the file, the key and the rule.
+
+A body is a Motive rigid body (`rigid_body`), a Motive skeleton bone (`bone`), or a marker
+layout fitted frame by frame (`markers`); a fit whose residual passes the configured limit
+(config capture.max_marker_residual_mm) refuses the take.
 
 The lab frame is the format's: Y up, metres, quaternions w, x, y, z (docs/data.md).
 """
@@ -34,13 +39,15 @@ ROTATION_TOL = 1e-6
 MIN_HEIGHT_M = 1e-3
 # sync none: how far the clock shift is searched from the one that lines up the logs' first samples
 MAX_OFFSET_S = 0.15
+# A body's key in the lab file -> (the Take's table of such bodies, the column type Motive names)
+SOLVED = {"rigid_body": ("rigid_bodies", "Rigid Body"), "bone": ("bones", "Bone")}
 
 
 @dataclass(frozen=True, eq=False)
 class Lab:
     path: Path
     rotation: np.ndarray  # (3, 3): lab = rotation @ capture
-    bodies: dict[str, dict]  # name -> {"rigid_body": name} or {"markers": {label: [x, y, z]}}
+    bodies: dict[str, dict]  # name -> {"rigid_body": name}, {"bone": name} or {"markers": {label: [x, y, z]}}
     servos: tuple[int, ...]  # bus id behind servo column 1..9
     arm: dict  # arm_length_m, tendon_radius_m, end_effector_m
     clock: dict  # sync ("none", {"column": name} or {"event_time_s": s}), max_drift_ppm, max_offset_s
@@ -49,9 +56,10 @@ class Lab:
         """(..., 3) capture coordinates -> lab coordinates."""
         return np.asarray(points, float) @ self.rotation.T
 
-    def body_pose(self, take, name: str):
+    def body_pose(self, take, name: str, max_residual_m: float):
         """(p (n, 3), q (n, 4) w, x, y, z, valid (n,)) of one body in the lab frame, from a Motive
-        Take's rigid body or from the markers of a Motive Take or a C3D MarkerTake."""
+        Take's rigid body or bone, or from the markers of a Motive Take or a C3D MarkerTake, whose
+        fit may leave at most max_residual_m (RMS, any frame)."""
         spec = self.bodies.get(name)
         if spec is None:
             raise CaptureError(
@@ -59,12 +67,19 @@ class Lab:
                 f"bodies: no {name!r} (it names {', '.join(self.bodies)})",
                 "the lab file names base, s1, s2, tip and target",
             )
-        if "rigid_body" in spec:
-            table = getattr(take, "rigid_bodies", {}).get(spec["rigid_body"])
+        key = next((k for k in SOLVED if k in spec), None)
+        if key is not None:
+            field, kind = SOLVED[key]
+            table = getattr(take, field, {}).get(spec[key])
             if table is None:
+                # the name under the other kind is a lab file to correct, not a body the take lacks
+                other = next((k for k, (f, _) in SOLVED.items() if spec[key] in getattr(take, f, {})), None)
+                hint = ""
+                if other:
+                    hint = f": the take holds it as a {SOLVED[other][1]} (map it with {other}: {spec[key]})"
                 raise CaptureError(
                     take.path,
-                    f"no rigid body {spec['rigid_body']!r} (the lab file's {name})",
+                    f"no {kind.lower()} {spec[key]!r} (the lab file's {name}){hint}",
                     "every body the lab file names is in the take",
                 )
             q_axes = Rotation.from_matrix(self.rotation).as_quat(scalar_first=True)
@@ -82,7 +97,17 @@ class Lab:
             )
         tables = [take.markers[lb] for lb in spec["markers"]]
         observed = np.stack([np.where(t["valid"].to_numpy()[:, None], t[["x", "y", "z"]], np.nan) for t in tables], 1)
-        return fit_pose(list(spec["markers"].values()), self.to_lab_frame(observed))
+        p, q, valid, residual = fit_pose(list(spec["markers"].values()), self.to_lab_frame(observed))
+        worst = np.where(valid, residual, -np.inf)
+        k = int(np.argmax(worst)) if len(worst) else 0
+        if valid.any() and worst[k] > max_residual_m:
+            raise CaptureError(
+                take.path,
+                f"the lab file's {name} markers fit its layout to {worst[k] * 1e3:.1f} mm RMS at "
+                f"t = {take.t[k] - take.t[0]:.3f} s (a layout that is not the body's, or a marker mislabelled?)",
+                f"marker fit residual <= {max_residual_m * 1e3:g} mm (config capture.max_marker_residual_mm)",
+            )
+        return p, q, valid
 
 
 def read_yaml(path: Path, schema) -> dict:
@@ -128,7 +153,17 @@ def load_lab(path: str | Path) -> Lab:
             "capture.axes: determinant -1, a reflection (a left-handed frame?)",
             "capture.axes is a rotation",
         )
+    owner = {}  # (kind, capture name) -> the arm body mapped to it
     for name, spec in doc["bodies"].items():
+        for kind, names in [(k, [spec[k]]) for k in SOLVED if k in spec] + [("marker", spec.get("markers", {}))]:
+            for n in names:
+                if (kind, n) in owner:
+                    raise CaptureError(
+                        path,
+                        f"bodies.{owner[kind, n]} and bodies.{name} both map to {kind.replace('_', ' ')} {n!r}",
+                        "each arm body its own capture body",
+                    )
+                owner[kind, n] = name
         for labels in combinations(spec.get("markers", {}), 3):
             a, b, c = (np.array(spec["markers"][lb], float) for lb in labels)
             longest = max(np.linalg.norm(b - a), np.linalg.norm(c - b), np.linalg.norm(a - c))

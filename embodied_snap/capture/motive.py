@@ -7,14 +7,22 @@ frame. A blank cell is an occluded value. Positions come back in metres and quat
 qw, qx, qy, qz (Motive writes X, Y, Z, W), with their sign as exported: q and -q are the same
 rotation, and Motive flips between them from one frame to the next.
 
+Time is Frame / Export Frame Rate. Motive writes the Time column from the same two, to the
+microsecond, and NMotive rounds it to the millisecond (0.003, 0.006, 0.008, ... at 360 Hz): that
+column is not a clock, only a check. A Time more than half a millisecond from Frame / rate is
+refused (a wrong rate in the header, or a column edited), so the rounding passes and nothing else.
+
 Refused (CaptureError): no Format Version, a version outside 1.21-1.25, a rotation type other
-than Quaternion, missing or unknown length units, a name given twice within one column type,
-frames out of order or repeated, a Time column that does not step at the export frame rate, a
-column type this reader does not know, and a truncated file. Truncated means a data row with
-fewer cells than the axis row, or a file whose last row does not end with a line break (Motive
-ends every row with one): what a copy cut short leaves. A file cut at a row boundary reads as a
-shorter take; `total_frames` (the header's Total Exported Frames) lets the caller compare, since
-an excerpt of a take is a legitimate edit. The frame rate itself is not judged here.
+than Quaternion, missing or unknown length units, a Coordinate Space other than Global, a name
+given twice within one column type, frames out of order or repeated, a Time column that
+disagrees with Frame / rate, a column type this reader does not know, and a truncated file.
+Coordinate Space Local puts each bone relative to its parent bone, not in the capture volume:
+the lab frame is the capture's, so such a take is refused (export it with world coordinates).
+Truncated means a data row with fewer cells than the axis row, or a file whose last row does not
+end with a line break (Motive ends every row with one): what a copy cut short leaves. A file cut
+at a row boundary reads as a shorter take; `total_frames` (the header's Total Exported Frames)
+lets the caller compare, since an excerpt of a take is a legitimate edit. The frame rate itself
+is not judged here.
 """
 
 from __future__ import annotations
@@ -49,6 +57,9 @@ KINDS = {
     "Bone Marker": ("body_markers", POINT_COLUMNS),
 }
 HEADER_SEARCH = 20  # the axis row is within the first few lines of every version
+# NMotive rounds Time to 1 ms: at most half of it from Frame / rate, plus float round-off
+TIME_TOL_S = 0.5e-3
+SPACES = ("Global",)  # Coordinate Space: Local is relative to each bone's parent (the docstring)
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,10 +70,10 @@ class Take:
     rate_hz: float  # Export Frame Rate
     units: str  # as the file names them; the tables are in metres whatever they are
     rotation: str
-    space: str  # Coordinate Space: Global, or Local for bones relative to their parent
+    space: str  # Coordinate Space: Global (SPACES)
     start_time: str  # Capture Start Time as written: its format follows the exporting PC's locale
     total_frames: int | None  # Total Exported Frames as the header declares it
-    t: np.ndarray  # seconds, the Time column
+    t: np.ndarray  # seconds, Frame / Export Frame Rate (the Time column agrees to TIME_TOL_S)
     frame: np.ndarray  # ints
     timecode: np.ndarray | None  # strings, when the export has a TimeCode column
     rigid_bodies: dict[str, pd.DataFrame]  # x, y, z (m), qw, qx, qy, qz, valid
@@ -127,6 +138,12 @@ def _metadata(path, line):
         rate = float("nan")
     if not rate > 0:
         raise CaptureError(path, "no positive Export Frame Rate in the metadata row", "a capture rate in the file")
+    space = meta.get("Coordinate Space", "")
+    if space not in SPACES:
+        what = f"Coordinate Space {space!r}" if space else "no Coordinate Space in the metadata row"
+        if space == "Local":
+            what += ": a Local take puts each bone relative to its parent, not in the capture volume"
+        raise CaptureError(path, what, "Coordinate Space Global (export with world coordinates)")
     total = meta.get("Total Exported Frames", "")
     return dict(
         name=meta.get("Take Name", ""),
@@ -134,7 +151,7 @@ def _metadata(path, line):
         rate_hz=rate,
         units=units,
         rotation=meta["Rotation Type"],
-        space=meta.get("Coordinate Space", ""),
+        space=space,
         start_time=meta.get("Capture Start Time", ""),
         total_frames=int(total) if total.isdigit() else None,
     )
@@ -224,16 +241,17 @@ def _frames(path, df, cols, rate):
             f"frames out of order: frame {frame[i + 1]} after frame {frame[i]}",
             "frames in order, each once",
         )
-    # Motive writes Time as frame / rate, to the microsecond, or (NMotive) to the millisecond:
-    # the median step per frame is within 1 ms of 1 / rate in every export, whatever the rounding
-    if len(t) > 1 and abs(np.median(np.diff(t) / step) - 1 / rate) > 1e-3:
-        per = np.median(np.diff(t) / step)
+    clock = frame / rate
+    off = np.abs(t - clock)
+    if (off > TIME_TOL_S + 1e-9).any():
+        i = int(np.flatnonzero(off > TIME_TOL_S + 1e-9)[0])
         raise CaptureError(
             path,
-            f"the Time column steps {per:.6f} s per frame, not 1/{rate:g} s",
-            "Time agrees with the Export Frame Rate",
+            f"frame {frame[i]}: the Time column says {t[i]:.6f} s, Frame / Export Frame Rate "
+            f"{clock[i]:.6f} s ({off[i] * 1e3:.3f} ms apart)",
+            f"Time is Frame / Export Frame Rate to within {TIME_TOL_S * 1e3:g} ms",
         )
-    return frame, t
+    return frame, clock
 
 
 def _tables(path, df, cols, scale):

@@ -16,8 +16,10 @@ MIN_MARKERS = 3  # fewer leave a rotation about their line undetermined
 def fit_pose(layout, observed):
     """layout (k, 3) body frame; observed (n, k, 3) lab, NaN where occluded.
 
-    Returns p (n, 3), q (n, 4) as w, x, y, z with w >= 0, and valid (n,): a frame with fewer than
-    MIN_MARKERS markers seen has a NaN pose and valid False."""
+    Returns p (n, 3), q (n, 4) as w, x, y, z with w >= 0, valid (n,): a frame with fewer than
+    MIN_MARKERS markers seen has a NaN pose and valid False, and residual (n,): the root mean
+    square distance of the seen markers from where the fitted pose puts the layout (NaN where not
+    valid). A layout that is not the body's, or a marker label on the wrong marker, shows there."""
     layout = np.asarray(layout, float)
     observed = np.asarray(observed, float)
     seen = np.isfinite(observed).all(axis=-1)  # (n, k)
@@ -39,7 +41,10 @@ def fit_pose(layout, observed):
     p = np.full((len(observed), 3), np.nan)
     q = np.full((len(observed), 4), np.nan)
     p[valid] = cb - np.einsum("mij,mj->mi", r, ca)
+    residual = np.full(len(observed), np.nan)
     if valid.any():
         qv = Rotation.from_matrix(r).as_quat(scalar_first=True)
         q[valid] = qv * np.where(qv[:, :1] < 0, -1.0, 1.0)  # q and -q are one rotation: keep w >= 0
-    return p, q, valid
+        miss = np.einsum("mij,mkj->mki", r, a) + p[valid][:, None] - b  # (m, k, 3), 0 where unseen
+        residual[valid] = np.sqrt((w[..., 0] * (miss**2).sum(-1)).sum(1) / w[..., 0].sum(1))
+    return p, q, valid, residual

@@ -6,11 +6,13 @@ import pandas as pd
 
 from .. import rawformat as RF
 from ..io import read_parquet
+from ..rawschema import as_float64
 
 
 def group(raw_dir, gid: str) -> tuple[pd.DataFrame, pd.DataFrame, dict]:
     p = RF.group_paths(raw_dir, gid)
-    return read_parquet(p["mocap"]), read_parquet(p["servo"]), RF.read_meta(p["meta"])
+    # float32 columns read as float64, as the gate read them
+    return as_float64(read_parquet(p["mocap"])), as_float64(read_parquet(p["servo"])), RF.read_meta(p["meta"])
 
 
 def release_start(meta: dict) -> float:

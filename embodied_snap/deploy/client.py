@@ -4,12 +4,14 @@ The manifest is all it reads (checksum verified). From the target it computes th
 (Eq. 5-8) and every goal of the trial before the port is opened; then, over Dynamixel Protocol 2.0
 (dynamixel-sdk: PortHandler, PacketHandler 2.0, GroupSyncWrite at Goal Position, GroupSyncRead of
 Present Current/Velocity/Position, explicit reads of Hardware Error Status), it checks every servo's
-model number, operating mode and EEPROM position limits against the manifest, sets the bus
-watchdog, enables torque and plays the schedule at the manifest's rate, reading every servo back
-each cycle. Nothing read back changes a goal (open loop: Table II's "online correction: none").
-Torque goes off in a `finally` on success, any error, a timeout, SIGINT or SIGTERM. Only a complete
-trial is written, in the rig recording format (docs/data.md); an aborted one leaves a one-line
-record under `aborted/`. Numpy, dynamixel-sdk and the standard library only.
+model number, operating mode and EEPROM position limits against the manifest, reads where every
+servo rests (refused when one rests where no program leaves it), sets the bus watchdog, enables
+torque, brings every servo to the first goal on a slow ramp under a current limit, and plays the
+schedule at the manifest's rate, reading every servo back each cycle. Nothing read back changes a
+goal (open loop: Table II's "online correction: none"). Torque goes off in a `finally` on success,
+any error, a timeout, SIGINT or SIGTERM. Only a complete trial is written, in the rig recording
+format (docs/data.md); an aborted one leaves a one-line record under `aborted/`, removed when the
+trial of that group id is recorded. Numpy, dynamixel-sdk and the standard library only.
 
 The loop holds its period on a busy PC (docs/deployment.md, "The control loop on a busy PC"): while
 the port is open the thread runs at real-time priority (SCHED_FIFO) where the OS permits it, else
@@ -40,6 +42,7 @@ except ImportError:  # not a POSIX lab PC
 
 from . import commands as C
 from . import controltable as CT
+from .manifest import FORMAT as MANIFEST_FORMAT
 from .manifest import ManifestError, load
 
 
@@ -76,6 +79,23 @@ def checked_servo_ids(man: dict) -> list[int]:
     if sorted(ids) != list(range(1, 10)) or any(isinstance(i, bool) for i in ids):
         raise ArgumentError(f"the manifest's servos.ids {ids}: expected 1..9, each once")
     return ids
+
+
+def said_by(man: dict) -> str:
+    """Whose numbers a refusal quotes: esnap deploy's manifest, or esnap lab's plan."""
+    return "the manifest" if man.get("format") == MANIFEST_FORMAT else "the plan"
+
+
+START_KEYS = ("tolerance_ticks", "ramp_tick_s", "current_ma")
+
+
+def checked_start(man: dict) -> dict:
+    """The manifest's (plan's) servos.start: where the arm may start and how it gets to the first goal."""
+    st = man["servos"].get("start")
+    if not isinstance(st, dict) or sorted(st) != sorted(START_KEYS):
+        raise ArgumentError(f"{said_by(man)} has no servos.start {list(START_KEYS)} (how the arm gets to its first "
+                            "goal): written by an older version, write it again")
+    return st
 
 
 PORT_ERRORS = (OSError, _TermiosError)
@@ -190,6 +210,7 @@ class Bus:
     def __init__(self, port: str, baud: int, ids, retries: int, reply_ms: float):
         dxl = _sdk()
         self.dxl, self.ids, self.retries, self.reply_ms = dxl, list(ids), retries, reply_ms
+        self.baud = baud
         self.port = _port_class(dxl, reply_ms)(port)
         self.ph = dxl.PacketHandler(2.0)
         if not self.port.openPort():
@@ -326,24 +347,60 @@ class Bus:
 
 
 def preflight(bus: Bus, man: dict) -> None:
-    """Refuse (one line) unless every servo is the manifest's model, in its operating mode, with
-    its EEPROM position limits and no latched hardware error."""
-    sv, env = man["servos"], man["envelope"]
+    """Refuse (one line) unless every servo is the manifest's (plan's) model, in its operating mode,
+    with its EEPROM position limits and no latched hardware error."""
+    sv, env, says = man["servos"], man["envelope"], said_by(man)
     for k, i in enumerate(sv["ids"]):
-        model = bus.ping(i)
+        try:
+            model = bus.ping(i)
+        except DeployError as e:
+            if k or not str(e).startswith("timeout"):
+                raise
+            # not even the first servo answers: most likely the bus runs at another baud rate
+            raise DeployError(f"{e}; no servo answers at {getattr(bus, 'baud', '?')} baud: check the servos' Baud "
+                              f"Rate (address 8) against --baud and {says}'s servos.baud {sv['baud']}") from None
         if model != sv["model_number"]:
-            raise DeployError(f"servo {i}: model number {model}, the manifest says {sv['model_number']}")
+            raise DeployError(f"servo {i}: model number {model}, {says} says {sv['model_number']}")
         mode = bus.read(i, CT.OPERATING_MODE)
         if mode != sv["operating_mode"]:
-            raise DeployError(f"servo {i}: operating mode {mode}, the manifest says {sv['operating_mode']}")
+            raise DeployError(f"servo {i}: operating mode {mode}, {says} says {sv['operating_mode']}")
         lo = CT.signed(bus.read(i, CT.MIN_POSITION_LIMIT), 4)
         hi = CT.signed(bus.read(i, CT.MAX_POSITION_LIMIT), 4)
         if (lo, hi) != (env["eeprom_min"][k], env["eeprom_max"][k]):
-            raise DeployError(f"servo {i}: EEPROM position limits {lo} .. {hi}, the manifest says "
+            raise DeployError(f"servo {i}: EEPROM position limits {lo} .. {hi}, {says} says "
                               f"{env['eeprom_min'][k]} .. {env['eeprom_max'][k]}")
         err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
         if err:
             raise DeployError(f"servo {i}: hardware error status {err:#04x} before the trial")
+
+
+def start_ramp(bus: Bus, man: dict, first) -> dict:
+    """Where the arm starts (docs/deployment.md, "Where the arm starts"), read with torque off: every
+    servo's present position. A servo resting farther than servos.start.tolerance_ticks outside its
+    EEPROM limits (which hold every goal of every program, so every place a program leaves a servo:
+    the gearbox holds a paid-out cable where the program left it) is refused in one line. The others
+    get the ramp to the first goal `first`: straight lines at no more than servos.start.ramp_tick_s,
+    all servos arriving together; none when every servo is within one ramp step of it. Returns the
+    record written to meta.json as `start`, with the ramp's goals (n, 9), frozen, under "goals"."""
+    sv, env, st = man["servos"], man["envelope"], man["servos"]["start"]
+    pos = np.array([CT.signed(bus.read(i, CT.PRESENT_POSITION), 4) for i in sv["ids"]], np.int64)
+    tol = st["tolerance_ticks"]
+    lo, hi = np.asarray(env["eeprom_min"]), np.asarray(env["eeprom_max"])
+    beyond = np.maximum(lo - pos, pos - hi)
+    if (beyond > tol).any():
+        j = int(np.argmax(beyond > tol))
+        i = sv["ids"][j]
+        raise DeployError(f"servo {i}: rests at {pos[j]} ticks, {beyond[j]} outside its EEPROM limits {lo[j]} .. "
+                          f"{hi[j]} (tolerance {tol}), where no program of {said_by(man)} leaves it: is its Homing "
+                          f"Offset set (the straight hanging arm reads 0), is the right servo on id {i}?")
+    first = np.asarray(first, np.int64)
+    step = st["ramp_tick_s"] / float(sv["hz"])
+    n = int(np.ceil(np.abs(first - pos).max() / step - 1e-9))
+    goals = np.rint(pos + (first - pos) * (np.arange(1, n + 1) / n)[:, None]).astype(np.int64) if n > 1 else \
+        np.empty((0, len(pos)), np.int64)
+    goals.setflags(write=False)
+    return dict(present=pos.tolist(), first_goal=first.tolist(), ramp_cycles=len(goals), ramp_tick_s=st["ramp_tick_s"],
+                current_limit_ma=st["current_ma"], goals=goals)
 
 
 def _sigterm(signum, frame):
@@ -354,11 +411,49 @@ def _sigterm(signum, frame):
 LOG_GOAL_TIMING = "row"
 
 
-def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray:
+def _hardware_error(bus: Bus, ids, k: int, where: str) -> None:
+    """Cycle k's Hardware Error Status read: one servo per cycle, round robin."""
+    i = ids[k % len(ids)]
+    err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+    if err:  # latched on the servo: asked again after a drain, so a stray late reply cannot stop a trial
+        bus.drain()
+        err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
+    if err:
+        raise DeployError(f"hardware error on servo {i}: status {err:#04x} {where}")
+
+
+def ramp(bus: Bus, man: dict, start: dict) -> None:
+    """Play the start ramp (`start_ramp`; torque on) at the bus rate, aborting when a servo's present
+    current passes the limit: a cable that pulls against the arm on the way to the first goal (the
+    ramp runs to the straight hanging arm, which no taut cable resists). Adds each servo's peak
+    current on the ramp to `start` (peak_current_ma)."""
+    ids, goals, lim = man["servos"]["ids"], start["goals"], start["current_limit_ma"]
+    pos, cur, peak = np.empty(len(ids)), np.empty(len(ids)), np.zeros(len(ids))
+    clock = Deadlines(1.0 / float(man["servos"]["hz"]))
+    try:
+        for k in range(len(goals)):
+            clock.wait(k)
+            bus.sync_write(goals[k])
+            bus.sync_read(pos, cur)
+            np.maximum(peak, np.abs(cur), out=peak)
+            if (np.abs(cur) > lim).any():
+                j = int(np.argmax(np.abs(cur) > lim))
+                raise DeployError(f"servo {ids[j]}: {abs(cur[j]):.0f} mA on the start ramp at {pos[j]:.0f} ticks, "
+                                  f"on its way from {start['present'][j]} to {goals[-1][j]} (limit {lim:g} mA): its "
+                                  "cable pulls against the arm; is its Homing Offset set, its cable routed as the goal "
+                                  "map says?")
+            _hardware_error(bus, ids, k, f"on the start ramp, at {clock.now():.2f} s")
+    finally:
+        start["peak_current_ma"] = np.round(peak, 1).tolist()
+
+
+def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None, start: dict | None = None) -> np.ndarray:
     """Play the schedule open loop; returns the servo log (T, 1 + 27): t, then goal, present,
     current per servo. Every goal is in `goals` before this is called, and nothing here writes it.
-    The log is allocated before the first cycle and filled in place; `on_cycle(k, t)`, if given,
-    runs inside the cycle and must not block."""
+    With torque on, the start ramp (`start`, from `start_ramp`) runs first; the log holds the
+    schedule alone, its clock starting at the schedule's first cycle. The log is allocated before
+    the first cycle and filled in place; `on_cycle(k, t)`, if given, runs inside the cycle and must
+    not block."""
     assert not goals.flags.writeable, "the schedule must be frozen before the first byte moves the arm"
     ids = man["servos"]["ids"]
     period = 1.0 / float(man["servos"]["hz"])
@@ -367,6 +462,9 @@ def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray
         bus.write(i, CT.BUS_WATCHDOG, wd)
     for i in ids:
         bus.write(i, CT.TORQUE_ENABLE, 1)
+    if start is not None:
+        assert not start["goals"].flags.writeable and np.array_equal(start["first_goal"], goals[0])
+        ramp(bus, man, start)
     log = np.empty((len(goals), 1 + 27))
     per_servo = log[:, 1:].reshape(len(goals), 9, 3)  # a view: goal, present, current of each servo
     per_servo[:, :, 0] = goals
@@ -379,13 +477,7 @@ def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray
             bus.sync_write(goals[k])
             bus.sync_read(per_servo[k, :, 1], per_servo[k, :, 2])
             t = log[k, 0] = clock.now()
-            i = ids[k % len(ids)]  # one servo's Hardware Error Status per cycle, round robin
-            err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
-            if err:  # latched on the servo: asked again after a drain, so a stray late reply cannot stop a trial
-                bus.drain()
-                err = bus.read(i, CT.HARDWARE_ERROR_STATUS)
-            if err:
-                raise DeployError(f"hardware error on servo {i}: status {err:#04x} at t = {t:.2f} s")
+            _hardware_error(bus, ids, k, f"at t = {t:.2f} s")
             if on_cycle:
                 on_cycle(k, t)
     finally:
@@ -396,7 +488,8 @@ def execute(bus: Bus, man: dict, goals: np.ndarray, on_cycle=None) -> np.ndarray
 
 def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
     """The servo log and meta.json in the rig format (rawformat; needs pandas and pyarrow, else the
-    log is kept as servo.npz for conversion on another machine)."""
+    log is kept as servo.npz for conversion on another machine). A recorded group is no longer
+    aborted: its `aborted/<group_id>.json`, left by an earlier try, goes."""
     d = Path(out) / "groups" / meta["group_id"]
     d.mkdir(parents=True, exist_ok=True)
     try:
@@ -414,6 +507,7 @@ def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
         RF.write_parquet(df, d / "servo.parquet")
         files = [d / "servo.parquet"]
     write_meta(d / "meta.json", meta)
+    (Path(out) / "aborted" / f"{meta['group_id']}.json").unlink(missing_ok=True)
     return files + [d / "meta.json"]
 
 
@@ -423,22 +517,24 @@ def write_meta(path: Path, meta: dict) -> None:
         f.write("\n")
 
 
-def drive(man: dict, port: str, baud: int, goals: np.ndarray, on_cycle=None) -> tuple:
-    """Open the port, preflight, play the frozen `goals`, and turn torque off whatever happened:
-    (servo log or None, cause of an abort or None, servos whose torque-off failed). `man` needs
-    the manifest's `servos` and `envelope` sections (esnap deploy's manifest, esnap lab's plan);
-    every argument was checked before this is called."""
+def drive(man: dict, port: str, baud: int, goals: np.ndarray, on_cycle=None, started: dict | None = None) -> tuple:
+    """Open the port, preflight, read where the arm rests, ramp to the first goal, play the frozen
+    `goals`, and turn torque off whatever happened: (servo log or None, cause of an abort or None,
+    servos whose torque-off failed). `man` needs the manifest's `servos` and `envelope` sections
+    (esnap deploy's manifest, esnap lab's plan); every argument was checked before this is called.
+    `started`, if given, receives the start's record (`start_ramp`, for meta.json's `start`)."""
     bus = Bus(port, baud, man["servos"]["ids"], man["servos"]["reply_retries"],
               man["servos"]["reply_timeout_ms"])
     old = signal.signal(signal.SIGTERM, _sigterm)
     # Ctrl-C stops the arm even when the parent ignores SIGINT (a shell's background job starts
     # with it ignored, and Python then installs no handler of its own)
     old_int = signal.signal(signal.SIGINT, signal.default_int_handler)
-    cause, log = None, None
+    cause, log, start = None, None, None
     with raised_priority():  # the whole time the arm may move, torque off included
         try:
             preflight(bus, man)
-            log = execute(bus, man, goals, on_cycle)
+            start = start_ramp(bus, man, goals[0])
+            log = execute(bus, man, goals, on_cycle, start)
         except DeployError as e:
             cause = str(e)
         except KeyboardInterrupt:
@@ -448,6 +544,8 @@ def drive(man: dict, port: str, baud: int, goals: np.ndarray, on_cycle=None) -> 
         finally:
             failed = bus.torque_off()
             bus.close()
+            if started is not None and start is not None:
+                started.update({k: v for k, v in start.items() if k != "goals"})
             signal.signal(signal.SIGTERM, old)
             signal.signal(signal.SIGINT, old_int)
     return log, cause, failed
@@ -469,7 +567,7 @@ def aborted_line(cause: str, failed: list[str]) -> str:
 
 def run(manifest, port: str | None, target, *, baud: int | None = None, out=None, group_id: str = "dep_0001",
         placement: int | None = None, dry_run: bool = False, confirm=None, say=print) -> dict:
-    """One trial. Returns {commands, phases, goals, log, cause, torque_off}; raises DeployError
+    """One trial. Returns {commands, phases, goals, log, cause, torque_off, start}; raises DeployError
     (one line) when it refuses or aborts, after torque went off. `placement`: which of the manifest's
     placements the block stands at (recorded in the program; Table II counts placements)."""
     try:
@@ -480,6 +578,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     # The one door to the port (esnap deploy and the simulated rig's trials): what the command
     # line checked is checked again here, before the port opens.
     checked_servo_ids(man)
+    checked_start(man)
     checked_placement(man, placement)
     baud = checked_baud(man, baud)
     cmd, goals = trial["commands"], trial["goals"]
@@ -493,8 +592,13 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     if confirm is not None and not confirm():
         raise DeployError("refused: not confirmed by the operator")
     out_dir = Path(out) if out else None
-    log, cause, failed = drive(man, port, baud, goals)
-    result = dict(trial, log=log, cause=cause, torque_off=not failed)
+    started = {}
+    log, cause, failed = drive(man, port, baud, goals, started=started)
+    if started.get("ramp_cycles"):
+        far = int(np.abs(np.subtract(started["present"], started["first_goal"])).max())
+        say(f"start: every servo brought to the first goal from where it rested (up to {far} ticks away) in "
+            f"{started['ramp_cycles']} cycles at {started['ramp_tick_s']:g} tick/s")
+    result = dict(trial, log=log, cause=cause, torque_off=not failed, start=started)
     if cause is not None:
         if out_dir is not None:
             write_aborted(out_dir, group_id, cause, failed, manifest_sha256=man["checksum"])
@@ -506,7 +610,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
                     axis=man["workspace"]["hanging_axis"], manifest_sha256=man["checksum"],
                     program=dict(kind="primitive", **{k: round(v, 4) for k, v in cmd.items()},
                                  target_m=[float(x) for x in np.ravel(target)]),
-                    labels={k: v for k, v in trial["phases"].items() if k != "t_end"})
+                    labels={k: v for k, v in trial["phases"].items() if k != "t_end"}, start=started)
         if placement is not None:
             meta["program"]["placement"] = int(placement)
         write_trial(out_dir, meta, log)

@@ -50,10 +50,10 @@ def load(path) -> dict:
     return man
 
 
-def envelope(rho_max, s3_max: float, carry_ticks: float, margin: float) -> dict:
-    """Per-servo goal limits: every goal the goal map gives for any recorded preload (the directional
-    workspace's largest preload per bin, at every bearing), with or without the full S3 slack, plus
-    the carry; widened by `margin` of each servo's span. EEPROM limits: the same, rounded outward."""
+def reach(rho_max, s3_max: float, carry_ticks: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per-servo lowest and highest goal the goal map gives for any preload up to `rho_max` (rows of
+    the three sections' preloads, e.g. the directional workspace's largest per bin), at every bearing,
+    with or without the full S3 slack, plus the carry; rest (0) included."""
     bear = np.arange(0.0, 360.0, 1.0)
     G = [np.zeros(9)]
     for rho in np.asarray(rho_max, float):
@@ -62,16 +62,50 @@ def envelope(rho_max, s3_max: float, carry_ticks: float, margin: float) -> dict:
             G += [w, w - np.r_[np.zeros(6), np.full(3, s3_max)]]
     g = np.asarray(G)
     carry = np.tile(carry_ticks * np.cos(np.deg2rad(bear[:, None] - np.array(CABLE_BEARINGS_DEG))), 3)
-    return widened(g.min(0) + np.minimum(carry.min(0), 0), g.max(0) + np.maximum(carry.max(0), 0), margin)
+    return g.min(0) + np.minimum(carry.min(0), 0), g.max(0) + np.maximum(carry.max(0), 0)
 
 
-def widened(lo, hi, margin: float) -> dict:
-    """Per-servo goal limits lo .. hi widened by `margin` of each servo's span; the EEPROM limits the
-    same, rounded outward (the manifest's envelope, esnap lab's plan)."""
+def arm_limits(ranges: dict, carry_ticks: float, margin: float) -> dict:
+    """The servos' EEPROM position limits, one pair per servo for every program the arm runs (the
+    acquisition plan's and the deployment manifest's): the reach of the largest preloads and S3
+    slack the action ranges allow (policy.ranges, which bound every drawn program and the recorded
+    workspace), plus the carry, widened by `margin` of each servo's span and rounded outward."""
+    rho = [[ranges[k][1] for k in ("rho1", "rho2", "rho3")]]
+    lo, hi = reach(rho, ranges["s3"][1], carry_ticks)
     pad = margin * (hi - lo)
-    lo, hi = lo - pad, hi + pad
-    return dict(margin_fraction=margin, goal_min=np.round(lo, 1).tolist(), goal_max=np.round(hi, 1).tolist(),
-                eeprom_min=np.floor(lo).astype(int).tolist(), eeprom_max=np.ceil(hi).astype(int).tolist())
+    return dict(eeprom_min=np.floor(lo - pad).astype(int).tolist(), eeprom_max=np.ceil(hi + pad).astype(int).tolist())
+
+
+def envelope(rho_max, s3_max: float, carry_ticks: float, margin: float, limits: dict) -> dict:
+    """Per-servo goal limits: every goal the goal map gives for any recorded preload (the directional
+    workspace's largest preload per bin), `reach`, widened by `margin` of each servo's span; the
+    EEPROM limits are the arm's (`arm_limits`)."""
+    return widened(*reach(rho_max, s3_max, carry_ticks), margin, limits)
+
+
+def widened(lo, hi, margin: float, limits: dict) -> dict:
+    """Per-servo goal limits lo .. hi widened by `margin` of each servo's span, with the arm's EEPROM
+    limits (the manifest's envelope, esnap lab's plan). Refuses goal limits the EEPROM limits do not
+    hold: the same arm runs every plan and manifest of its config without rewriting them."""
+    pad = margin * (hi - lo)
+    lo, hi = np.round(lo - pad, 1), np.round(hi + pad, 1)
+    out = dict(margin_fraction=margin, goal_min=lo.tolist(), goal_max=hi.tolist(), **limits)
+    bad = np.flatnonzero((lo < out["eeprom_min"]) | (hi > out["eeprom_max"]))
+    if len(bad):
+        j = int(bad[0])
+        raise ValueError(f"servo {j + 1}: goals {lo[j]:.0f} .. {hi[j]:.0f} outside the arm's EEPROM limits "
+                         f"{out['eeprom_min'][j]} .. {out['eeprom_max'][j]} (config policy.ranges, "
+                         "deployment.schedule.carry_ticks)")
+    return out
+
+
+def start(cfg: dict, rated_speed_tick_s: float) -> dict:
+    """How a program starts where the arm is (config deployment.start; docs/deployment.md, "Where the
+    arm starts"): the tolerance outside the EEPROM limits, the ramp's speed (a share of the rated
+    speed, tick/s) and its current limit (mA)."""
+    st = cfg["start"]
+    return dict(tolerance_ticks=int(st["tolerance_ticks"]),
+                ramp_tick_s=round(st["speed_fraction"] * rated_speed_tick_s, 3), current_ma=float(st["current_ma"]))
 
 
 def feature_box(ws: dict, pad_m: float) -> dict:
@@ -126,6 +160,11 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
     sch = cfg["schedule"]
     ws_keys = ("bin_lo_deg", "bin_width_deg", "rho_max", "phi0_deg", "delta_str_deg", "hanging_axis", "n_strikes")
     box = feature_box(workspace, cfg["target_pad_m"])
+    try:
+        env = envelope(workspace["rho_max"], ranges["s3"][1], sch["carry_ticks"], cfg["envelope_margin"],
+                       arm_limits(ranges, sch["carry_ticks"], cfg["envelope_margin"]))
+    except ValueError as e:
+        raise ManifestError(f"the manifest's envelope: {e}") from None
     man = dict(
         format=FORMAT,
         code_version=code_version,
@@ -142,10 +181,11 @@ def build(inputs: dict, run: dict, workspace: dict, servo_fit: dict, cfg: dict, 
                     goal_map="servo 3(s-1)+k pulls tendon k (azimuth 120(k-1) deg) of section s; goals in ticks "
                              "from the straight hanging arm (Homing Offset sets rest = 0)",
                     baud=cfg["baud"], hz=cfg["servo_hz"], watchdog_ms=cfg["watchdog_ms"],
-                    reply_timeout_ms=cfg["reply_timeout_ms"], reply_retries=cfg["reply_retries"]),
+                    reply_timeout_ms=cfg["reply_timeout_ms"], reply_retries=cfg["reply_retries"],
+                    start=start(cfg, rig["rated_speed_tick_s"])),
         calibration=dict(lever_ticks_per_rad=servo_fit["lever_ticks_per_rad"],
                          ceiling_rad_s=servo_fit["ceiling_rad_s"], rated_speed_tick_s=rig["rated_speed_tick_s"]),
-        envelope=envelope(workspace["rho_max"], ranges["s3"][1], sch["carry_ticks"], cfg["envelope_margin"]),
+        envelope=env,
         placements=placements(workspace, cfg["distances_m"], cfg["bearing_range_deg"], cfg["n_placements"], box),
         inputs={k: dict(path=str(p), sha256=sha256(p)) for k, p in sorted(inputs.items())},
         lineage=lineage,

@@ -14,22 +14,26 @@ from pathlib import Path
 from .. import rawformat as RF
 from ..io import parquet_rows
 from ..rawformat import RecordingError
-from ..validate import Limits, validate_group
+from ..validate import Limits, check_one_recording, validate_group
 
 
 def gate(raw, trials: list[dict], limits: Limits) -> tuple[list[dict], list[dict]]:
     """trials: index rows of complete trials, or {group_id, cause} of aborted ones. Returns (rows
-    that pass the recording gate of docs/data.md, aborted + rejected with their cause)."""
-    rows, aborted = [], []
+    that pass the recording gate of docs/data.md, aborted + rejected with their cause). A trial
+    whose recording an earlier one already holds (a copied or linked take) is rejected: one
+    recording, one trial of Table II."""
+    rows, aborted, passed = [], [], []
     for r in trials:
         if "cause" in r:
             aborted.append(r)
             continue
         try:
-            validate_group(raw, r["group_id"], r, limits=limits)  # with the labels Table II reads (gate.labels)
+            entry = validate_group(raw, r["group_id"], r, limits=limits)  # with the labels Table II reads (gate.labels)
+            check_one_recording([*passed, entry])
         except RecordingError as e:  # kept out of the index with its reason, like an aborted trial
             aborted.append(dict(group_id=r["group_id"], cause=f"rejected by the gate: {e}"))
             continue
+        passed.append(entry)
         rows.append(r)
     return rows, aborted
 

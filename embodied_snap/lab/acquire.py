@@ -2,12 +2,13 @@
 
 Each group: the operator's step is shown and confirmed, the group's program (drawn again from the
 plan and checked against it) is played through esnap deploy's own client and preflight (model
-number, operating mode, EEPROM limits, watchdog, torque off whatever happens), and the servo log
-and meta.json are written into the session folder as a group folder `esnap import` completes with
-the capture system's take of the same name. Every argument and every group's goals are checked
-before the port opens. A recorded group is never written again; an aborted one (Ctrl-C, a servo
-fault, a lost port) stops the session with one line and leaves `aborted/<group_id>.json`, and the
-next run resumes at the first group without a servo log.
+number, operating mode, EEPROM limits, where the arm rests and the ramp from there to the first
+goal, watchdog, torque off whatever happens), and the servo log and meta.json are written into the
+session folder as a group folder `esnap import` completes with the capture system's take of the
+same name. Every argument and every group's goals are checked before the port opens. A recorded
+group is never written again; an aborted one (Ctrl-C, a servo fault, a lost port) stops the session
+with one line and leaves `aborted/<group_id>.json` until it is recorded, and the next run resumes
+at the first group without a servo log (of one session or evidence set, when narrowed to it).
 
 The session folder:
 
@@ -44,7 +45,7 @@ class LabError(ValueError):
 
 
 class LabArgumentError(LabError):
-    """A bad command-line argument (--from, --baud, --out)."""
+    """A bad command-line argument (--from, --session, --evidence-set, --baud, --out)."""
 
 
 def recorded(out: Path, gid: str) -> bool:
@@ -52,30 +53,53 @@ def recorded(out: Path, gid: str) -> bool:
     return (d / "servo.parquet").is_file() and (d / "meta.json").is_file()
 
 
-def checked(plan_path, out, start: str | None, baud: int | None):
+def narrowed(doc: dict, plan_path, session: str | None, evidence_set: str | None) -> list[dict]:
+    """The plan's groups of one session and/or one evidence set (None: all), in the plan's order."""
+    groups = doc["groups"]
+    for flag, key, want in (("--session", "session", session), ("--evidence-set", "evidence_set", evidence_set)):
+        if want is None:
+            continue
+        there = sorted({e[key] for e in groups})
+        if want not in there:
+            raise LabArgumentError(f"{flag} {want}: not a{'n' * (key == 'evidence_set')} {key.replace('_', ' ')} of "
+                                   f"{plan_path}{' in ' + session if key == 'evidence_set' and session else ''} "
+                                   f"({', '.join(there)})")
+        groups = [e for e in groups if e[key] == want]
+    return groups
+
+
+def checked(plan_path, out, start: str | None, baud: int | None, session: str | None = None,
+            evidence_set: str | None = None):
     """(plan, its groups from the first to record, goals per group id, baud): everything refused
-    here, before any port opens."""
+    here, before any port opens. `session`, `evidence_set`: only that session's (set's) groups."""
     try:
         doc = load(plan_path)
     except PlanError as e:
         raise LabError(str(e)) from None
-    ids = [e["group_id"] for e in doc["groups"]]
+    try:
+        client.checked_start(doc)
+    except client.ArgumentError as e:
+        raise LabError(f"{plan_path}: {e}") from None
     try:
         client.checked_servo_ids(doc)
         baud = client.checked_baud(doc, baud)
     except client.ArgumentError as e:
         raise LabArgumentError(str(e)) from None
+    groups = narrowed(doc, plan_path, session, evidence_set)
+    ids = [e["group_id"] for e in groups]
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise LabArgumentError(f"--out {out}: not a folder")
     if start is not None:
         if start not in ids:
-            raise LabArgumentError(f"--from {start}: not a group of {plan_path} ({ids[0]} .. {ids[-1]})")
+            where = " and ".join(f"{k} {v}" for k, v in (("session", session), ("evidence set", evidence_set)) if v)
+            raise LabArgumentError(f"--from {start}: not a group of {plan_path}{' in ' + where if where else ''} "
+                                   f"({ids[0]} .. {ids[-1]})")
         if recorded(out, start):
             raise LabArgumentError(f"--from {start}: already recorded in {out}/groups/{start} (a recorded group is "
                                    "never overwritten: move its folder away to record it again)")
     first = ids.index(start) if start is not None else 0
-    todo = [e for e in doc["groups"][first:] if not recorded(out, e["group_id"])]
+    todo = [e for e in groups[first:] if not recorded(out, e["group_id"])]
     goals = {}
     for e in todo:
         try:
@@ -92,12 +116,14 @@ def cue_cycle(entry: dict, hz: float) -> int | None:
     return None if "cue_s" not in entry else int(np.ceil(entry["cue_s"] * hz - 1e-9))
 
 
-def group_meta(doc: dict, entry: dict, log: np.ndarray, k_cue: int | None) -> dict:
+def group_meta(doc: dict, entry: dict, log: np.ndarray, k_cue: int | None, start: dict | None = None) -> dict:
+    """meta.json of a recorded group; `start`: where the arm started and its ramp (client.start_ramp)."""
     meta = dict(format_version=RF.FORMAT_VERSION, group_id=entry["group_id"], evidence_set=entry["evidence_set"],
                 category=entry["category"], session=entry["session"],
                 recorded_at=_dt.datetime.now().isoformat(timespec="seconds"), source="rig",
                 goal_timing=client.LOG_GOAL_TIMING, program=entry["program"], labels=dict(entry["phases"]), events={},
-                plan_sha256=doc["checksum"], protocol_version=doc["protocol_version"])
+                plan_sha256=doc["checksum"], protocol_version=doc["protocol_version"],
+                **({"start": start} if start is not None else {}))
     if k_cue is not None:  # when the cue sounded, on the servo log's clock
         meta["events"]["base_event_t"] = round(float(log[min(k_cue, len(log) - 1), 0]), 4)
     if "target" in entry:
@@ -136,12 +162,13 @@ def write_session_files(doc: dict, out: Path) -> list[Path]:
 
 
 def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False, baud: int | None = None,
-            ask=input, say=print, rig=None) -> dict:
-    """Record the plan's groups from `start` (default: the first not recorded). `port`: the serial
+            session: str | None = None, evidence_set: str | None = None, ask=input, say=print, rig=None) -> dict:
+    """Record the plan's groups from `start` (default: the first not recorded), of one session and/or
+    evidence set when given (the plan's order kept). `port`: the serial
     port; `rig(entry)`, if given, a context manager yielding the port of that group instead (the
     simulated rig's virtual bus). Returns {recorded: [...], skipped: [...]}; raises LabError (one
     line) when refused or aborted, after torque went off."""
-    doc, todo, goals, baud = checked(plan_path, out, start, baud)
+    doc, todo, goals, baud = checked(plan_path, out, start, baud, session, evidence_set)
     out = Path(out)
     (out / CAPTURES).mkdir(parents=True, exist_ok=True)
     hz = float(doc["servos"]["hz"])
@@ -167,11 +194,15 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
         for attempt in range(1, MAX_ATTEMPTS + 1):
             ctx = rig(entry) if rig is not None else contextlib.nullcontext(port)
             with ctx as p:
-                log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle)
+                started = {}
+                log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle, started)
+                if started.get("ramp_cycles"):
+                    say(f"{gid}: the servos ramped to the first goal from where they rested "
+                        f"({started['ramp_cycles']} cycles at {started['ramp_tick_s']:g} tick/s)")
                 refused = None if cause is not None else log_refused(doc, log, out, gid)
                 if cause is None:  # a log the gate will refuse is kept aside, and the group run again
                     where = out if refused is None else out / "rejected" / str(attempt)
-                    client.write_trial(where, group_meta(doc, entry, log, k_cue), log)
+                    client.write_trial(where, group_meta(doc, entry, log, k_cue, started), log)
             if cause is not None:
                 client.write_aborted(out, gid, cause, failed, plan_sha256=doc["checksum"])
                 write_session_files(doc, out)

@@ -20,7 +20,7 @@ import yaml
 from ..acquisition import draws as D
 from ..capture.importer import MEASURED_LABELS
 from ..deploy import controltable as CT
-from ..deploy.manifest import SERVO_IDS, widened
+from ..deploy.manifest import SERVO_IDS, arm_limits, start, widened
 from ..files import write_text
 from ..plan import twin_plan
 from ..protocol import ACQUISITION, from_params, params
@@ -86,11 +86,12 @@ def _order(row: dict) -> tuple:
     return (row["session"], EVIDENCE_SETS.index(es), CATEGORIES[es].index(row["category"]), row["group_id"])
 
 
-def envelope(goals: list[np.ndarray], margin: float) -> dict:
+def envelope(goals: list[np.ndarray], margin: float, limits: dict) -> dict:
     """Per-servo goal limits: every goal the plan commands, widened by `margin` of each servo's span
-    (as the deployment manifest's envelope); EEPROM limits the same, rounded outward."""
+    (as the deployment manifest's envelope); the EEPROM limits are the arm's, the manifest's own
+    (deploy.manifest.arm_limits): the arm set up for the plan runs the deployment unchanged."""
     g = np.vstack([np.zeros((1, 9))] + list(goals))
-    return widened(g.min(0), g.max(0), margin)
+    return widened(g.min(0), g.max(0), margin, limits)
 
 
 def build(config: dict, budget: str, place=None) -> dict:
@@ -121,13 +122,19 @@ def build(config: dict, budget: str, place=None) -> dict:
         if cue is not None:
             e["cue_s"] = cue
         entries.append(e)
+    try:
+        env = envelope(traces, dep["envelope_margin"],
+                       arm_limits(config["policy"]["ranges"], dep["schedule"]["carry_ticks"], dep["envelope_margin"]))
+    except ValueError as e:
+        raise PlanError(f"the plan's goals: {e}") from None
     doc = dict(
         format=FORMAT, budget=budget, seed=int(config["seed"]), protocol_version=protocol_version(),
         protocol=params(config, *ACQUISITION),
         servos=dict(ids=SERVO_IDS, model_number=CT.XM430_W350, operating_mode=CT.EXTENDED_POSITION_MODE,
                     baud=dep["baud"], hz=dep["servo_hz"], watchdog_ms=dep["watchdog_ms"],
-                    reply_timeout_ms=dep["reply_timeout_ms"], reply_retries=dep["reply_retries"]),
-        envelope=envelope(traces, dep["envelope_margin"]),
+                    reply_timeout_ms=dep["reply_timeout_ms"], reply_retries=dep["reply_retries"],
+                    start=start(dep, config["rig"]["rated_speed_tick_s"])),
+        envelope=env,
         gate=dict(max_servo_gap_s=float(config["gate"]["max_servo_gap_s"])),  # checked as each log is recorded
         groups=entries,
     )

@@ -10,10 +10,10 @@ line: every run checks its own declarations.
 
 Reads are seen through Python's audit hook (the `open` event): `open`, `json`, `np.load`,
 `torch.load`, pandas' csv reader, and parquet through `embodied_snap.io` (pyarrow's own C++ reads
-are invisible to the hook, hence that one reader). In a Snakemake job the hook is installed when
-this module is imported, by the first statement of every workflow script
-(`from embodied_snap.lineage import records`), so a read at the script's top level or in a package
-module's import is seen and checked like one inside `tracked()`.
+are invisible to the hook, hence that one reader). In a Snakemake job the hook is installed at the
+interpreter's start, before the script's first line, by the start-up hook the workflow puts on its
+jobs' PYTHONPATH (STARTUP, `job_environment`), so a read anywhere in a script or in a package
+module's import is seen and checked like one inside `tracked()`, and a job without that start fails.
 
 Records are not Snakemake outputs: they describe jobs, they are not data. `esnap audit`,
 `esnap check-separation` and the PROV export read only these records (and the files on disk).
@@ -237,10 +237,24 @@ def _script_path(root: Path) -> str | None:
 
 _opened: set[str] | None = None  # paths opened for reading while a job is watched
 _hooked = False
-_early: list[str] = []  # package modules a job had loaded before its watch began
-# The first statement of every workflow script (tests/test_watch.py): importing this module in a job
-# starts the watch, before anything else of the script runs.
-WATCH_IMPORT = "from embodied_snap.lineage import records"
+_from_start = False  # this interpreter's watch began at its start (the start-up hook)
+# The start-up hook's folder: its sitecustomize starts the watch in a job's interpreter before the
+# job's script runs (docs/lineage.md, "From the interpreter's start").
+STARTUP = Path(__file__).with_name("startup")
+
+
+def job_environment(env=os.environ) -> dict[str, str]:
+    """What the workflow sets for its jobs (rules/common.smk): PYTHONPATH with STARTUP first, the
+    rest of `env`'s kept after it (once: the Snakefile may be read more than once in a process)."""
+    rest = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != str(STARTUP)]
+    return {"PYTHONPATH": os.pathsep.join([str(STARTUP), *rest])}
+
+
+def watch_from_start() -> None:
+    """The start-up hook's call, in a job's interpreter before its script's first line."""
+    global _from_start
+    _watch()
+    _from_start = True
 
 
 def _audit(event: str, args: tuple) -> None:
@@ -259,7 +273,7 @@ def _audit(event: str, args: tuple) -> None:
 
 
 def _watch() -> None:
-    """Start collecting reads; a watch already running (started at import in a job) keeps what
+    """Start collecting reads; a watch already running (started with a job's interpreter) keeps what
     it saw since."""
     global _opened, _hooked
     if not _hooked:
@@ -318,12 +332,15 @@ def check_declared(rule: str, declared: list[str], reads: list[str], modules: li
                                   "(rule: code inputs are the script's imports, lineage/imports.py)")
 
 
-def check_watched(rule: str) -> None:
-    """Fail (one line) if a package module was loaded before the watch began: its import-time
-    reads went unseen (only Snakemake's preamble runs before a script's first statement)."""
-    if _early:
-        raise UndeclaredInput(f"{_early[0]}: loaded by rule {rule} before its reads were watched (rule: a "
-                              f"workflow script's first statement is `{WATCH_IMPORT}`, docs/lineage.md)")
+def check_watched(rule: str, script: str | None = None) -> None:
+    """Fail (one line) if a Snakemake job's watch did not begin at its interpreter's start: what it
+    read, or loaded, before `tracked()` went unseen (the job's PYTHONPATH lacked STARTUP). Watched
+    from the start, no package module can have been loaded before the watch."""
+    if _in_job() and not _from_start:
+        hook = (STARTUP / "sitecustomize.py").relative_to(STARTUP.parents[2]).as_posix()
+        raise UndeclaredInput(f"{script or sys.argv[0]}: run by rule {rule} without the watch from its start (rule: a "
+                              f"job's reads are watched from its interpreter's start by {hook}, which the "
+                              "workflow puts on its jobs' PYTHONPATH, docs/lineage.md)")
 
 
 @contextmanager
@@ -354,13 +371,13 @@ def tracked(smk, root=".", check_modules: bool = True):
     log = _flat(getattr(smk, "log", None))
     modules = loaded_modules() if check_modules else []
     own = {_rel(p, root) for p in outputs + log}
+    script = _script_path(root)
     try:
         if check_modules:
-            check_watched(rule)
+            check_watched(rule, script)
         check_declared(rule, inputs + sorted(own), reads, modules, raw_dir_of(config))
     except UndeclaredInput as e:
         sys.exit(f"error: {e}")  # one line, in the job's log
-    script = _script_path(root)
     if script and script not in inputs:
         inputs.append(script)
     write_record(rule, wildcards, inputs, outputs, _named(getattr(smk, "params", None)),
@@ -411,8 +428,3 @@ def _in_job() -> bool:
     # Snakemake's preamble defines `snakemake` in the script's namespace before its first line; no
     # other process (pytest, esnap) has it, and none of them is watched from its start.
     return hasattr(sys.modules.get("__main__"), "snakemake")
-
-
-if _in_job():
-    _early = loaded_modules()
-    _watch()

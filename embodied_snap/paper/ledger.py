@@ -31,6 +31,7 @@ AUDIT = "audit-"  # the id prefix of a claim's audit section in claims.html
 # paper result (reference/paper_values.yaml `by_construction:`, docs/twin.md), never "agrees"
 AGREES, DIFFERS, NO_PAPER, NOT_MEASURED = "agrees", "differs", "no paper value", "not measured"
 BY_CONSTRUCTION = "by construction"
+STATUSES = (AGREES, DIFFERS, BY_CONSTRUCTION, NOT_MEASURED, NO_PAPER)  # every status a row can have
 TWIN_PROVENANCE = "docs/twin.md"  # where each simulated-rig number comes from
 
 

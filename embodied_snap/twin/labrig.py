@@ -49,9 +49,12 @@ class HeldBase:
 
 
 def rig(group: dict, seed: int, dt: float, hold: dict, proto: Protocol, eeprom_min, eeprom_max,
-        faults: dict | None = None, target: dict | None = None):
+        faults: dict | None = None, target: dict | None = None, rest=None):
     """(bus, stepper, target, session params, rng, push) of one group; the bus is not started.
-    `target`: the group's block when already placed (place_target), else placed here."""
+    `target`: the group's block when already placed (place_target), else placed here; `rest`: what
+    the servos read at rest (VirtualBus; default 0, the straight hanging arm). With another rest the
+    client's start ramp runs first, and the trial clock (the motion capture's, the push's) starts
+    with the ramp, not the program: for tests of the start, not for recordings."""
     gid, session = str(group["group_id"]), str(group["session"])
     sess = TR.session_params(seed, session)
     sv = TR.servo_params(seed)
@@ -61,7 +64,7 @@ def rig(group: dict, seed: int, dt: float, hold: dict, proto: Protocol, eeprom_m
     r = rng_for(seed, "lab", gid)
     push = None if group.get("cue_s") is None else HeldBase(group["cue_s"], hold, dt, r)
     st = Stepper(TR.arm_params(sess), sv, dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r, wrench=push)
-    bus = VirtualBus(st, eeprom_min, eeprom_max, faults)
+    bus = VirtualBus(st, eeprom_min, eeprom_max, faults, rest=rest)
     if push is not None:
         push.start = lambda: bus.first_goal_t
     return bus, st, target, sess, r, push
@@ -86,9 +89,9 @@ def record(st: Stepper, target: dict | None, sess: dict, r: np.random.Generator,
                 snap_speed_event=bool(vtip.max() >= speed_mps), events=dict(ev))
 
 
-def _serve(conn, group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, target):
+def _serve(conn, group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, target, rest):
     """The rig's process: the bus until told the group ended, then the physics and the mocap."""
-    bus, st, target, sess, r, push = rig(group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, target)
+    bus, st, target, sess, r, push = rig(group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, target, rest)
     conn.send(bus.start())
     msg = conn.recv()  # ("done", t_end) or ("aborted", None)
     bus.stop()
@@ -112,10 +115,10 @@ class LabRig(RigProcess):
     axis, snap_speed_event and the physics' events."""
 
     def __init__(self, group: dict, seed: int, dt: float, hold: dict, proto: Protocol, eeprom_min, eeprom_max,
-                 faults: dict | None = None):
+                 faults: dict | None = None, rest=None):
         self.gid = str(group["group_id"])
         off = group.get("target_offset_m")
         # placed here: the nominal strike is simulated once per process, not once per group
         target = None if off is None else place_target(group["program"]["bearing"], np.asarray(off, float), dt, proto)
         super().__init__(_serve, dict(group), int(seed), float(dt), dict(hold), proto, list(eeprom_min),
-                         list(eeprom_max), faults, target)
+                         list(eeprom_max), faults, target, rest)

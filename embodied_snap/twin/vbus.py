@@ -17,6 +17,10 @@ just above the client's loop, the physics below it (it yields every slice, so it
 share of a core), which also keeps the physics from being preempted while it holds the GIL the
 bus thread waits for. Without the permission the physics runs niced instead.
 
+`rest` (optional, ticks per servo, default 0): what each servo reads while its shaft rests where
+the simulated arm hangs straight, as a servo whose Homing Offset is not set, or one another
+program left elsewhere; goals are read in the same frame (a goal of `rest` holds the shaft).
+
 Faults (`faults`, all optional): no_reply {id, at_s}; bad_crc {at_s}; hw_error {id, at_s, bits};
 model {id, number}; eeprom {id}; close {at_s}. Times are on the trial clock.
 """
@@ -129,8 +133,10 @@ class Servo:
 
 
 class VirtualBus:
-    def __init__(self, stepper, eeprom_min, eeprom_max, faults: dict | None = None, model: int = CT.XM430_W350):
+    def __init__(self, stepper, eeprom_min, eeprom_max, faults: dict | None = None, model: int = CT.XM430_W350,
+                 rest=None):
         self.stepper = stepper
+        self.rest = np.zeros(9) if rest is None else np.broadcast_to(np.asarray(rest, float), (9,)).copy()
         self.faults = dict(faults or {})
         self.servos = [Servo(i, model, int(eeprom_min[i]), int(eeprom_max[i])) for i in range(9)]
         f = self.faults
@@ -280,11 +286,15 @@ class VirtualBus:
         except OSError:
             pass
 
-    def _refresh(self, s: Servo) -> None:
-        pos = self.stepper.present()[s.i]
+    def _refresh(self, s: Servo, a: int, n: int) -> None:
+        """The present state, for a read of n bytes from address a. A read of the position alone (the
+        client's, of where the arm rests) draws no current noise from the rig's stream, so the
+        stream, and every recording of the rig, is as it was without that read."""
+        pos = self.stepper.present()[s.i] + self.rest[s.i]
         s.put(CT.PRESENT_POSITION, CT.unsigned(int(round(pos)), 4))
-        cur = self.stepper.current_ma()[s.i] / CT.CURRENT_UNIT_MA
-        s.put(CT.PRESENT_CURRENT, CT.unsigned(int(round(cur)), 2))
+        if (a, n) != CT.PRESENT_POSITION:
+            cur = self.stepper.current_ma()[s.i] / CT.CURRENT_UNIT_MA
+            s.put(CT.PRESENT_CURRENT, CT.unsigned(int(round(cur)), 2))
         s.put(CT.HARDWARE_ERROR_STATUS, s.hw_error)
 
     def _write(self, s: Servo, addr: int, data: bytes) -> int:
@@ -300,7 +310,7 @@ class VirtualBus:
                 self.first_goal_t = self.now()
             self.goal_log.append((self.now(), s.i + 1, goal, apply))
             if apply:
-                self.stepper.set_goal(s.i, goal, self.now())
+                self.stepper.set_goal(s.i, goal - self.rest[s.i], self.now())
                 s.mem[addr:addr + 4] = data
             return 0
         if addr == CT.TORQUE_ENABLE[0]:
@@ -325,7 +335,7 @@ class VirtualBus:
             for i in ids:
                 a, n = int.from_bytes(params[0:2], "little"), int.from_bytes(params[2:4], "little")
                 s = self.servos[i - 1]
-                self._refresh(s)
+                self._refresh(s, a, n)
                 self._reply(i, 0, bytes(s.mem[a:a + n]))
         elif inst == WRITE:
             a = int.from_bytes(params[0:2], "little")
@@ -338,7 +348,7 @@ class VirtualBus:
             for i in params[4:]:
                 if 1 <= i <= 9:
                     s = self.servos[i - 1]
-                    self._refresh(s)
+                    self._refresh(s, a, n)
                     self._reply(i, 0, bytes(s.mem[a:a + n]))
         elif inst == SYNC_WRITE:
             a, n = int.from_bytes(params[0:2], "little"), int.from_bytes(params[2:4], "little")
