@@ -19,7 +19,6 @@ the capture software), and any other label column the sheet has.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import shutil
 import tempfile
@@ -31,8 +30,9 @@ import pandas as pd
 
 from .. import rawformat as RF
 from ..characterize.mocap import on_grid, section_bends, tip_speed
+from ..files import sha256
 from ..io import read_parquet
-from ..validate import COVER_TOL_S
+from ..validate import COVER_TOL_S, ONE_RECORDING_RULE
 from .clock import check_drift, estimate_offset, measure_drift
 from .errors import CaptureError
 from .lab import Lab, read_yaml
@@ -411,7 +411,7 @@ def build_group(spec: TakeSpec, lab: Lab, config: dict) -> tuple[dict, pd.DataFr
     meta["clock"] = clock
     meta["capture"] = dict(
         file=spec.mocap.name,
-        sha256=_sha256(spec.mocap),
+        sha256=sha256(spec.mocap),
         rate_hz=float(take.rate_hz),
         units=take.units,
         servo_log=spec.servo.name,
@@ -439,16 +439,10 @@ def base_and_axis(mocap: pd.DataFrame) -> dict:
     )
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
 def check_not_imported(specs, raw: Path, group_ids) -> None:
     """A take is imported once: refused when its export's bytes are those of the take a group of
     raw was imported from (its meta.json's capture.sha256), whatever the group's id, or of another
     take of this session."""
-    from ..validate import ONE_RECORDING_RULE
-
     held = {}  # an export's sha256 -> where it already is
     for gid in sorted(group_ids):
         try:
@@ -459,7 +453,7 @@ def check_not_imported(specs, raw: Path, group_ids) -> None:
             held.setdefault(sha, f"already imported as group {gid} in {raw}")
     for s in specs:
         try:
-            sha = _sha256(s.mocap)
+            sha = sha256(s.mocap)
         except OSError:
             continue  # building the take says what is wrong with it
         if sha in held:

@@ -403,6 +403,13 @@ def start_ramp(bus: Bus, man: dict, first) -> dict:
                 current_limit_ma=st["current_ma"], goals=goals)
 
 
+def ramped(start: dict) -> str:
+    """What the start ramp did, for the operator (esnap deploy's and esnap lab acquire's line)."""
+    far = int(np.abs(np.subtract(start["present"], start["first_goal"])).max())
+    return (f"every servo brought to the first goal from where it rested (up to {far} ticks away) in "
+            f"{start['ramp_cycles']} cycles at {start['ramp_tick_s']:g} tick/s")
+
+
 def _sigterm(signum, frame):
     raise DeployError("terminated (SIGTERM)")
 
@@ -595,9 +602,7 @@ def run(manifest, port: str | None, target, *, baud: int | None = None, out=None
     started = {}
     log, cause, failed = drive(man, port, baud, goals, started=started)
     if started.get("ramp_cycles"):
-        far = int(np.abs(np.subtract(started["present"], started["first_goal"])).max())
-        say(f"start: every servo brought to the first goal from where it rested (up to {far} ticks away) in "
-            f"{started['ramp_cycles']} cycles at {started['ramp_tick_s']:g} tick/s")
+        say(f"start: {ramped(started)}")
     result = dict(trial, log=log, cause=cause, torque_off=not failed, start=started)
     if cause is not None:
         if out_dir is not None:

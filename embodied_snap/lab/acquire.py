@@ -197,8 +197,7 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
                 started = {}
                 log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle, started)
                 if started.get("ramp_cycles"):
-                    say(f"{gid}: the servos ramped to the first goal from where they rested "
-                        f"({started['ramp_cycles']} cycles at {started['ramp_tick_s']:g} tick/s)")
+                    say(f"{gid}: {client.ramped(started)}")
                 refused = None if cause is not None else log_refused(doc, log, out, gid)
                 if cause is None:  # a log the gate will refuse is kept aside, and the group run again
                     where = out if refused is None else out / "rejected" / str(attempt)
