@@ -387,6 +387,27 @@ def place(layout, rotation, p):
     return np.einsum("nij,kj->nki", rotation.as_matrix(), layout) + p[:, None]
 
 
+def test_the_fit_residual_is_the_rms_miss_of_an_independent_kabsch_fit():
+    """Markers off their layout by unequal offsets, one frame with a marker occluded: the residual
+    is the RMS distance of the seen markers from scipy's own best rigid fit (align_vectors), with
+    the translation matching the centroids; a noiseless frame reads 0."""
+    r = Rotation.from_rotvec([[0.4, -0.9, 1.7], [-1.1, 0.2, 0.5], [0.0, 0.7, -0.3]])
+    p = np.array([[0.6, 1.1, -0.3], [-0.2, 0.9, 0.4], [0.1, 1.0, 0.2]])
+    obs = place(LAYOUT, r, p)
+    obs[0] += [[0.004, -0.002, 0.001], [0.0, 0.003, 0.0], [-0.005, 0.0, 0.002], [0.001, 0.001, -0.003]]
+    obs[1] += [[0.0, 0.0, 0.006], [0.002, -0.004, 0.0], [np.nan] * 3, [-0.003, 0.002, 0.001]]
+    _, _, valid, residual = fit_pose(LAYOUT, obs)
+    assert valid.all()
+    for n in (0, 1):
+        seen = np.isfinite(obs[n]).all(axis=1)
+        a, b = LAYOUT[seen], obs[n][seen]
+        rot, _ = Rotation.align_vectors(b - b.mean(0), a - a.mean(0))
+        miss = rot.apply(a - a.mean(0)) + b.mean(0) - b
+        assert residual[n] == pytest.approx(np.sqrt((miss**2).sum(1).mean()), rel=1e-9)
+        assert residual[n] > 1e-3  # every offset matters: millimetres, not round-off
+    assert residual[2] == pytest.approx(0.0, abs=1e-12)
+
+
 def test_a_known_pose_is_recovered_from_noiseless_markers():
     r = Rotation.from_rotvec([[0.3, -1.2, 2.0], [0.0, 0.0, 0.0]])
     p = np.array([[0.5, 1.0, -0.2], [0.0, 0.0, 0.0]])
