@@ -6,7 +6,7 @@ BUDGET ?=
 CORES ?= 2
 ASK := $(if $(BUDGET),--config budget=$(BUDGET))
 
-.PHONY: paper test install lint format clean cluster-test mutation
+.PHONY: paper test test-fast install lint format clean cluster-test mutation
 
 # Python 3.11 exactly (pyproject's requires-python; the lock is solved for it): another stops here.
 PYTHON ?= python3
@@ -34,8 +34,14 @@ paper: install
 	$(VENV)/bin/snakemake --cores $(CORES) all $(ASK)
 	$(VENV)/bin/snakemake --report results/report.html $(ASK)
 
+# Two workers (pytest-xdist): the session's smoke run on one, with the tests that read it; the rest
+# beside it (tests/conftest.py, the groups).
 test: install
-	$(VENV)/bin/pytest -q
+	$(VENV)/bin/pytest -q -n $(CORES) --dist loadgroup
+
+# The edit loop (CONTRIBUTING.md): the unit tests alone, no workflow run (the `slow` marker).
+test-fast: install
+	$(VENV)/bin/pytest -q -n $(CORES) --dist loadgroup -m "not slow"
 
 # A three-node SLURM cluster on this machine (network namespaces; root; installs slurm and munge from Debian if missing):
 # the smoke DAG through profiles/slurm, compared with a local run (docs/cluster.md).

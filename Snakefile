@@ -53,7 +53,7 @@ include: "rules/report.smk"
 PRODUCTS = [
     "results/figures",
     "results/raw/manifest.json",
-    *expand("results/data/50hz/{shard}.parquet", shard=SHARDS),
+    *expand(RESAMPLED_SHARD, shard=SHARDS),
     "results/lineage/separation.json",
     "results/lineage/prov.json",
     *claims_tables(),

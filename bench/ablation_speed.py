@@ -26,7 +26,6 @@ from embodied_snap.ablation import perturb, release
 from embodied_snap.ablation.rollouts import rollout, rule_clock, selected_run
 from embodied_snap.ablation.targets import sample_families
 from embodied_snap.policy import search, simulate
-from embodied_snap.protocol import load
 
 
 def main():
@@ -42,8 +41,8 @@ def main():
     cfg = yaml.safe_load(a.config.read_text())
     P, A, R = cfg["policy"], cfg["ablation"], a.results
     sim, ws = simulate.from_files(sorted(map(str, R.glob("dynamics/models/seed*.pt"))), R / "dynamics/hold_bank.npz",
-                                  R / "characterize/snap.json", R / "policy/workspace.json", P,
-                                  cfg["dynamics"]["after_s1_s"], cfg["rig"]["end_effector_m"], load(cfg))
+                                  R / "characterize/snap.json", R / "policy/workspace.json",
+                                  simulate.SimSettings.from_config(cfg))
     run = selected_run([json.load(open(f)) for f in sorted(R.glob("policy/runs/shared_seed*.json"))])
     proto = rule_clock(sim, dict(s1_rate_deg_s=A["s1_rate_deg_s"], tip_speed_mps=A["tip_speed_mps"]),
                        ws["hanging_axis"])
@@ -75,8 +74,10 @@ def main():
 
     t0 = time.perf_counter()
     H = json.load(open(R / "dynamics/hold.json"))
-    perturb.sweep(sim, act, T, A["perturbation_scales"], a.draws, H["tip_mm_median"], H["axis_deg_median"],
-                  np.asarray(ws["hanging_axis"]), cfg["seed"], H["tip_mm_median"] / H["tip_pct_arm_median"] * 100)
+    spec = perturb.PerturbationSweep(scales=tuple(A["perturbation_scales"]), draws=a.draws,
+                                     err_mm=H["tip_mm_median"], err_deg=H["axis_deg_median"],
+                                     arm_mm=H["tip_mm_median"] / H["tip_pct_arm_median"] * 100, seed=cfg["seed"])
+    perturb.sweep(sim, act, T, spec, hanging_axis=np.asarray(ws["hanging_axis"]))
     times["ablation_perturb"] = time.perf_counter() - t0
 
     n_roll = (a.offset + a.release) * (1 + len(steps)) + a.release * (1 + len(A["perturbation_scales"]) * a.draws + 1)

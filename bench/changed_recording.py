@@ -19,7 +19,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from embodied_snap.rawformat import group_paths, write_parquet
+from embodied_snap.io import write_parquet
+from embodied_snap.rawformat import group_paths
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from timeline import jobs  # noqa: E402 -- bench/ beside this file

@@ -34,7 +34,6 @@ import yaml
 from embodied_snap.dynamics import train as T
 from embodied_snap.policy import search, simulate, targets
 from embodied_snap.policy.evaluations import training_targets
-from embodied_snap.protocol import load
 from embodied_snap.windows import load_windows
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -107,8 +106,8 @@ def main():
 
     def sim_on(device):
         return simulate.from_files(sorted(map(str, R.glob("dynamics/models/seed*.pt"))), R / "dynamics/hold_bank.npz",
-                                   R / "characterize/snap.json", R / "policy/workspace.json", p,
-                                   cfg["dynamics"]["after_s1_s"], cfg["rig"]["end_effector_m"], load(cfg), device)
+                                   R / "characterize/snap.json", R / "policy/workspace.json",
+                                   simulate.SimSettings.from_config(cfg), device=device)
 
     def sync():
         if torch.cuda.is_available():
@@ -129,10 +128,13 @@ def main():
 
     sim, ws = sim_on(a.device)
     train, gen, sel = paper_targets(ws, cfg)
-    norm = search.feature_stats(train)
+    tgt = search.SearchTargets(train=train, gen_of=gen, select=sel, norm=search.feature_stats(train))
+
+    def spec(G):
+        return search.SearchSpec(ranges=p["ranges"], generations=G, popsize=b["popsize"], start=p["start"])
 
     def lockstep(s, G, rs=runs):
-        return search.lockstep(s, rs, train, gen, sel, norm, p["ranges"], G, b["popsize"], p["start"], progress=False)
+        return search.lockstep(s, rs, tgt, spec(G), progress=False)
 
     def strip(done):
         return [{k: v for k, v in r.items() if k != "state"} for r in done]
@@ -151,8 +153,7 @@ def main():
         return dict(generations=a.short, identical=short["a"] == short["b"])
 
     def alone():
-        search.cmaes(sim, "shared", 0, train, gen, sel, norm, p["ranges"], a.short, b["popsize"], p["start"],
-                     progress=False)
+        search.cmaes(sim, "shared", 0, tgt, spec(a.short), progress=False)
         return dict(generations=a.short, runs=1)
 
     def full():
@@ -170,9 +171,10 @@ def main():
         Wva = tiled(load_windows(R / "splits/windows_validation.npz"), d["val_windows"])
 
         def fit():
-            T.train(Wtr, Wva, 0, epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"],
-                    val_windows=d["val_windows"], batch_size=d["batch_size"], lr=d["lr"], patience=db["epochs"],
-                    device=a.device, log=lambda r: None)
+            settings = T.TrainSettings(epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"],
+                                       val_windows=d["val_windows"], batch_size=d["batch_size"], lr=d["lr"],
+                                       patience=db["epochs"], device=a.device)
+            T.train(Wtr, Wva, 0, settings, log=lambda r: None)
             return dict(epochs=db["epochs"], windows_per_epoch=db["windows_per_epoch"])
 
         step("train", fit)

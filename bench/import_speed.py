@@ -107,7 +107,7 @@ def floor(raw: Path, cfg: dict) -> None:
     so every millisecond of the estimate is the method's (the arm's lag behind its servos)."""
     import pandas as pd
 
-    from embodied_snap.capture.clock import estimate_offset
+    from embodied_snap.capture.clock import ClockFitOptions, estimate_offset
     from embodied_snap.capture.errors import CaptureError
     from embodied_snap.capture.importer import MIN_OVERLAP_S, MIN_PEAK_CORRELATION, clock_signals
     from embodied_snap.capture.lab import MAX_OFFSET_S
@@ -117,8 +117,9 @@ def floor(raw: Path, cfg: dict) -> None:
         m, s = pd.read_parquet(g / "mocap.parquet"), pd.read_parquet(g / "servo.parquet")
         _, motion, command = clock_signals(m, s, gap)
         try:
-            err.append(estimate_offset(m.t.to_numpy(), motion, s.t.to_numpy(), command, MAX_OFFSET_S, max_gap_s=gap,
-                                       min_overlap_s=MIN_OVERLAP_S, min_peak_correlation=MIN_PEAK_CORRELATION).offset_s)
+            options = ClockFitOptions(max_shift_s=MAX_OFFSET_S, max_gap_s=gap, min_overlap_s=MIN_OVERLAP_S,
+                                      min_peak_correlation=MIN_PEAK_CORRELATION)
+            err.append(estimate_offset(m.t.to_numpy(), motion, s.t.to_numpy(), command, options).offset_s)
         except CaptureError:
             bad += 1
     e = np.array(err) * 1e3

@@ -131,14 +131,15 @@ def main() -> int:
     # the deployment trials from the manifest that run exported, over the same virtual bus
     cfg = yaml.safe_load((work / "config.yaml").read_text())
     dep = cfg["budgets"][a.budget]["deployment"]
-    from embodied_snap.twin.deployment import run_trial
+    from embodied_snap.twin.deployment import DeploymentSetup, run_trial
 
+    setup = DeploymentSetup(raw=work / raw / "deployment", seed=cfg["seed"], n_sessions=cfg["sessions"],
+                            dt=cfg["twin"]["dt"], speed_mps=cfg["characterize"]["attach_speed_mps"])
     t, k = time.time(), 0
     for _ in range(dep["trials_per_placement"]):
         for placement in range(1, dep["placements"] + 1):
             k += 1
-            row = run_trial(work / "results/deployment/manifest.json", placement, k, work / raw / "deployment",
-                            cfg["seed"], cfg["sessions"], cfg["twin"]["dt"], cfg["characterize"]["attach_speed_mps"])
+            row = run_trial(work / "results/deployment/manifest.json", placement, k, setup)
             if "cause" in row:
                 print(f"deployment trial {k} aborted: {row['cause']}", flush=True)
     times["deploy"] = time.time() - t

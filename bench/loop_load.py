@@ -47,7 +47,7 @@ from embodied_snap.deploy import client  # noqa: E402
 from embodied_snap.deploy import manifest as MF  # noqa: E402
 from embodied_snap.deploy import trials as T  # noqa: E402
 from embodied_snap.policy import geometry, networks  # noqa: E402
-from embodied_snap.twin.deployment import Rig  # noqa: E402
+from embodied_snap.twin.deployment import DeploymentSetup, Rig  # noqa: E402
 from embodied_snap.validate import Limits  # noqa: E402
 
 CFG = yaml.safe_load(open(ROOT / "config.yaml"))
@@ -116,8 +116,9 @@ def trial(man_path, raw, placement: int, k: int) -> dict:
     """One trial as twin.deployment.run_trial runs it, with the cycle timings."""
     _T.update(start=[], latency=[], lost=0)
     man = json.loads(Path(man_path).read_text())
-    rig = Rig(man, placement, k, raw, CFG["seed"], CFG["sessions"], CFG["twin"]["dt"],
-              CFG["characterize"]["attach_speed_mps"])
+    setup = DeploymentSetup(raw=raw, seed=CFG["seed"], n_sessions=CFG["sessions"], dt=CFG["twin"]["dt"],
+                            speed_mps=CFG["characterize"]["attach_speed_mps"])
+    rig = Rig(man, placement, k, setup)
     out = dict(start=None, latency=None, servo_t=None)
     with rig as port:
         try:

@@ -19,7 +19,6 @@ import torch
 import yaml
 
 from embodied_snap.policy import search, simulate
-from embodied_snap.protocol import load
 
 
 def main():
@@ -35,15 +34,17 @@ def main():
     budget = cfg["budgets"]["paper"]["policy"]
     R = a.results
     sim, ws = simulate.from_files(sorted(map(str, R.glob("dynamics/models/seed*.pt"))), R / "dynamics/hold_bank.npz",
-                                  R / "characterize/snap.json", R / "policy/workspace.json", cfg["policy"],
-                                  cfg["dynamics"]["after_s1_s"], cfg["rig"]["end_effector_m"], load(cfg))
+                                  R / "characterize/snap.json", R / "policy/workspace.json",
+                                  simulate.SimSettings.from_config(cfg))
     tr = pd.read_parquet(R / "policy/targets_training.parquet")
     train = search.Targets(tr, ws)
     sel = search.Targets(pd.read_parquet(R / "policy/targets_selection.parquet"), ws)
     t0 = time.perf_counter()
-    run = search.cmaes(sim, a.arch, 0, train, tr["generation"].to_numpy(), sel, search.feature_stats(train),
-                       cfg["policy"]["ranges"], a.generations, budget["popsize"], cfg["policy"]["start"],
-                       progress=False)
+    tgt = search.SearchTargets(train=train, gen_of=tr["generation"].to_numpy(), select=sel,
+                               norm=search.feature_stats(train))
+    spec = search.SearchSpec(ranges=cfg["policy"]["ranges"], generations=a.generations, popsize=budget["popsize"],
+                             start=cfg["policy"]["start"])
+    run = search.cmaes(sim, a.arch, 0, tgt, spec, progress=False)
     dt = time.perf_counter() - t0
     n = run["curve"][-1]["evaluations"]
     print(f"{a.arch}, {a.generations} generations x {budget['popsize']} x {budget['targets_per_candidate']} "

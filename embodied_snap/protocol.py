@@ -1,11 +1,15 @@
 """The experimental protocol, read once from the validated config.
 
-Every number that the paper fixes and config.yaml carries (the sampling rate and step, the window
+Every number that the paper fixes and config.yaml carries (the mocap gap bridged, the window
 lengths, the attachment threshold, the timing set and action ranges, the primitive's S2 ramp and
 canonical bearing, the rig's rated servo speed and geometry) reaches code from here, as frozen
 dataclasses, never as a module constant. Workflow rules pass `params(config, *sections)` to their
 scripts as Snakemake params (so a changed value reruns exactly the jobs that use it) and the
 scripts rebuild the dataclasses with `from_params`.
+
+One number is no config value: the grid rate, GRID_HZ. The dynamics windows and the paper's report
+horizons are counted in its steps, so no other rate could run; it still reaches the jobs through
+the `sampling` section, like the values beside it.
 """
 
 from __future__ import annotations
@@ -18,8 +22,8 @@ from types import MappingProxyType
 class Sampling:
     """The state/command grid (paper IV-A)."""
 
-    hz: float
-    max_gap_s: float
+    hz: float  # GRID_HZ, the same for every config
+    max_gap_s: float  # config resample.max_gap_s: the longest mocap dropout bridged
 
     @property
     def dt(self) -> float:
@@ -91,11 +95,17 @@ _CLASSES = {"sampling": Sampling, "windows": Windows, "primitive": Primitive, "r
             "thresholds": Thresholds}
 
 
+# The state/command grid (paper IV-A: 50 Hz): the dynamics windows (history, lookahead, horizon) and
+# the report horizons (0.3/0.5/0.7 s) are defined in its steps. An int, as config.yaml once spelled
+# it, so the `sampling` param and the results that carry it keep their bytes.
+GRID_HZ = 50
+
+
 def _section(config: dict, name: str) -> dict:
     """Plain values of one section, straight from the (validated) config. Numbers that land in
     results as JSON are floats, however the YAML spells them (210 and 210.0 write differently)."""
     if name == "sampling":
-        return dict(hz=config["resample"]["hz"], max_gap_s=config["resample"]["max_gap_s"])
+        return dict(hz=GRID_HZ, max_gap_s=config["resample"]["max_gap_s"])
     if name == "windows":
         return dict(config["windows"])
     if name == "primitive":
@@ -131,18 +141,3 @@ def load(config: dict) -> Protocol:
     """The whole protocol of a config."""
     return from_params(params(config))
 
-
-# The dynamics model's windows are counted in grid steps and the paper's report horizons
-# (0.3/0.5/0.7 s) must fall on the grid; both hold at the paper's 50 Hz.
-SUPPORTED_HZ = (50,)
-
-
-def unsupported(config: dict) -> str | None:
-    """One line naming the stage that cannot run this protocol, or None. Checked at start-up."""
-    hz = config["resample"]["hz"]
-    if hz not in SUPPORTED_HZ:
-        w = config["windows"]
-        return (f"resample.hz = {hz:g} is not supported by the dynamics stage: its windows (history "
-                f"{w['history']}, lookahead {w['lookahead']}, horizon {w['horizon']}) and report "
-                f"horizons are defined in 50 Hz steps (paper IV-A); only resample.hz = 50 runs")
-    return None

@@ -16,6 +16,7 @@ from typing import NamedTuple
 import pandas as pd
 
 from .files import write_atomic
+from .io import write_json, write_parquet
 
 FORMAT_VERSION = 1
 # Mocap may be recorded at any constant rate in this range (Hz, both ends included): the gate reads
@@ -193,23 +194,6 @@ def group_paths(raw_dir: str | Path, group_id: str) -> dict[str, Path]:
             raise RecordingError(p, group_id, f"a link to {real}, outside {raw_dir}", FILE_RULE)
         out[name.split(".")[0]] = p
     return out
-
-
-def write_parquet(df: pd.DataFrame, path: str | Path) -> None:
-    # Fixed writer settings so that the same frame gives the same bytes; atomic (a crash never leaves half a file).
-    write_atomic(
-        path,
-        lambda tmp: df.to_parquet(tmp, index=False, engine="pyarrow", compression="zstd"),
-    )
-
-
-def write_json(obj, path: str | Path) -> None:
-    def w(tmp):
-        with open(tmp, "w") as f:
-            json.dump(obj, f, indent=1, sort_keys=True)
-            f.write("\n")
-
-    write_atomic(path, w)
 
 
 def write_group(raw_dir: str | Path, meta: dict, mocap: pd.DataFrame, servo: pd.DataFrame) -> None:

@@ -77,7 +77,7 @@ def _track(mocap: dict, body: str, tg: np.ndarray, max_gap_s: float, path, gid: 
 
 
 def resample_group(raw_dir, group_id: str, hz: float, max_gap_s: float) -> pd.DataFrame:
-    """One group on the `hz` grid (config resample.hz), mocap dropouts up to max_gap_s bridged:
+    """One group on the `hz` grid (protocol.GRID_HZ), mocap dropouts up to max_gap_s bridged:
     group_id, t, STATE_COLUMNS, COMMAND_COLUMNS (float32)."""
     paths = group_paths(raw_dir, group_id)
     mocap = _columns(

@@ -7,9 +7,8 @@ starts a round of its own, so while jobs wait for cores the timers pile up: afte
 N rounds a second, each one stat-ing the inputs of every ready job and selecting jobs again
 (upstream: snakemake pull request #3744). A local run never starts 100 jobs in a second, so it runs
 without the limit, and a round comes only when a job finishes; a cluster run (an executor plugin)
-keeps it. Jobs, their order and their results are unchanged (docs/benchmarks.md, "Recordings as
-outputs, and the scheduler's own CPU"); `tests/test_scheduling.py` fails when an upgrade of
-Snakemake moves what this relies on.
+keeps it. Jobs, their order and their results are unchanged (docs/design.md, "Scheduling");
+`tests/test_scheduling.py` fails when an upgrade of Snakemake moves what this relies on.
 """
 
 from __future__ import annotations

@@ -16,7 +16,8 @@ from pathlib import Path
 import pandas as pd
 
 from .files import sha256
-from .rawformat import GROUP_FILES, RecordingError, group_paths, raw_file, write_json
+from .io import write_json
+from .rawformat import GROUP_FILES, RecordingError, group_paths, raw_file
 
 RECORD = "sealed.json"
 RULE = "sealed set is fixed; re-seal with `esnap seal` if intended"

@@ -68,7 +68,7 @@ class Limits:
     sampling section of the protocol and raw_data.group_id_pattern); `from_config` builds them."""
 
     max_mocap_gap_s: float  # resample.max_gap_s: what passes is what resampling bridges
-    hz: float  # resample.hz: dropouts count on the span of the grid resampling fills
+    hz: float  # protocol.GRID_HZ: dropouts count on the span of the grid resampling fills
     max_servo_gap_s: float
     max_speed_mps: dict
     min_target_valid_fraction: float

@@ -16,7 +16,8 @@ import json
 from dataclasses import asdict
 from pathlib import Path
 
-from .rawformat import GROUP_FILES, RecordingError, group_paths, write_json
+from .io import write_json
+from .rawformat import GROUP_FILES, RecordingError, group_paths
 from .validate import ONE_RECORDING_RULE, RECORDINGS, Limits, check_one_recording, validate_group
 
 # The modules whose code decides a verdict (this one: what a remembered pass holds).
@@ -121,6 +122,24 @@ def gate_tree(config: dict, raw_dir, cache=None, recorded=None, partial: bool = 
     if recorded is None or all(recorded(s) for s in plan[plan.role == "sealed"].shard.unique()):
         sealed.check(raw_dir, plan, partial=partial)
     return plan, verdicts
+
+
+# What the workflow keeps beside a run: the verdicts already passed (Verdicts' cache), and the
+# record a simulated-rig acquisition job writes once its shard is recorded (rules/acquire.smk).
+GATE_CACHE = ".snakemake/esnap/gate.json"
+ACQUIRED = "results/twin/acquired/{shard}.json"
+
+
+def workflow_gate(config: dict):
+    """The gate as the workflow runs it before its DAG (rules/common.smk), in the run's directory:
+    gate_tree with the remembered verdicts; with the simulated rig, a shard not recorded yet is
+    left to its validate_shard job. Returns (plan, verdicts)."""
+    twin = config["raw_data"]["source"] == "twin"
+
+    def recorded(shard):
+        return not twin or Path(ACQUIRED.format(shard=shard)).exists()
+
+    return gate_tree(config, config["raw_data"]["dir"], GATE_CACHE, recorded=recorded)
 
 
 def check_tree(config: dict, raw_dir, partial: bool = False):

@@ -2,33 +2,37 @@
 # Table I "Release targets"; docs/ablation.md). Offsets are fitted on the offset targets only; the
 # release-evaluation targets are read only by ablation_rules (esnap check-separation).
 
-ABL = "results/ablation"
-ACFG = config["ablation"]
-ABUDGET = BUDGET["ablation"]
+ABLATION_DIR = "results/ablation"
+ABLATION_CONFIG = config["ablation"]
+ABLATION_BUDGET = BUDGET["ablation"]
 # The trigger thresholds; the grid step, anchor and timing set are the simulator's (the protocol's).
 TRIGGERS = dict(
-    s1_rate_deg_s=ACFG["s1_rate_deg_s"], tip_speed_mps=ACFG["tip_speed_mps"]
+    s1_rate_deg_s=ABLATION_CONFIG["s1_rate_deg_s"],
+    tip_speed_mps=ABLATION_CONFIG["tip_speed_mps"],
 )
 
 
 rule ablation_targets:
     """Offset and release-evaluation targets in target families, each set from its own seed."""
     input:
-        workspace=f"{POL}/workspace.json",
+        workspace=f"{POLICY_DIR}/workspace.json",
         code=imports("ablation_targets"),
     output:
-        offset=f"{ABL}/targets_offset.parquet",
-        release=f"{ABL}/targets_release.parquet",
+        offset=f"{ABLATION_DIR}/targets_offset.parquet",
+        release=f"{ABLATION_DIR}/targets_release.parquet",
     log:
         "logs/ablation/targets.log",
     conda:
         "../envs/esnap.yaml"
     params:
-        sizes=dict(offset=ABUDGET["offset_targets"], release=ABUDGET["release_targets"]),
-        seeds=ACFG["target_seeds"],
-        starts=ACFG["starts_per_family"],
-        arc_deg=PCFG["arc_deg"],
-        jitter_m=PCFG["target_jitter_m"],
+        sizes=dict(
+            offset=ABLATION_BUDGET["offset_targets"],
+            release=ABLATION_BUDGET["release_targets"],
+        ),
+        seeds=ABLATION_CONFIG["target_seeds"],
+        starts=ABLATION_CONFIG["starts_per_family"],
+        arc_deg=POLICY_CONFIG["arc_deg"],
+        jitter_m=POLICY_CONFIG["target_jitter_m"],
     script:
         "../workflow_scripts/ablation_targets.py"
 
@@ -38,10 +42,10 @@ rule ablation_offsets:
     input:
         **SIMULATOR,
         runs=SHARED_RUNS,
-        offset=f"{ABL}/targets_offset.parquet",
+        offset=f"{ABLATION_DIR}/targets_offset.parquet",
         code=imports("ablation_offsets"),
     output:
-        f"{ABL}/offsets.json",
+        f"{ABLATION_DIR}/offsets.json",
     log:
         "logs/ablation/offsets.log",
     benchmark:
@@ -51,11 +55,11 @@ rule ablation_offsets:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         triggers=TRIGGERS,
-        offset_range_s=ACFG["offset_range_s"],
+        offset_range_s=ABLATION_CONFIG["offset_range_s"],
     script:
         "../workflow_scripts/ablation_offsets.py"
 
@@ -65,11 +69,11 @@ rule ablation_rules:
     input:
         **SIMULATOR,
         runs=SHARED_RUNS,
-        offsets=f"{ABL}/offsets.json",
-        release=f"{ABL}/targets_release.parquet",
+        offsets=f"{ABLATION_DIR}/offsets.json",
+        release=f"{ABLATION_DIR}/targets_release.parquet",
         code=imports("ablation_rules"),
     output:
-        f"{ABL}/rules.parquet",
+        f"{ABLATION_DIR}/rules.parquet",
     log:
         "logs/ablation/rules.log",
     benchmark:
@@ -79,11 +83,11 @@ rule ablation_rules:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         triggers=TRIGGERS,
-        clock_s=ACFG["clock_s"],
+        clock_s=ABLATION_CONFIG["clock_s"],
     script:
         "../workflow_scripts/ablation_rules.py"
 
@@ -93,13 +97,13 @@ rule ablation_bend:
     input:
         **SIMULATOR,
         runs=SHARED_RUNS,
-        evaluation=f"{POL}/targets_evaluation.parquet",
-        shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
+        shards=expand(RESAMPLED_SHARD, shard=ROLE_SHARDS["train"]),
         metas=metas_of(**HOLD),
         code=imports("ablation_bend"),
     output:
-        bend=f"{ABL}/bend.json",
-        outcomes=f"{ABL}/selected_evaluation.parquet",
+        bend=f"{ABLATION_DIR}/bend.json",
+        outcomes=f"{ABLATION_DIR}/selected_evaluation.parquet",
     log:
         "logs/ablation/bend.log",
     benchmark:
@@ -109,9 +113,9 @@ rule ablation_bend:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         groups=HOLD_GROUPS,
     script:
         "../workflow_scripts/ablation_bend.py"
@@ -122,11 +126,11 @@ rule ablation_perturb:
     input:
         **SIMULATOR,
         runs=SHARED_RUNS,
-        evaluation=f"{POL}/targets_evaluation.parquet",
-        hold=f"{DYN}/hold.json",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
+        hold=f"{DYNAMICS_DIR}/hold.json",
         code=imports("ablation_perturb"),
     output:
-        f"{ABL}/perturb.json",
+        f"{ABLATION_DIR}/perturb.json",
     log:
         "logs/ablation/perturb.log",
     benchmark:
@@ -136,11 +140,11 @@ rule ablation_perturb:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
-        scales=ACFG["perturbation_scales"],
-        draws=ABUDGET["perturbation_draws"],
+        **SIMULATOR_PARAMS,
+        scales=ABLATION_CONFIG["perturbation_scales"],
+        draws=ABLATION_BUDGET["perturbation_draws"],
         seed=config["seed"],
     script:
         "../workflow_scripts/ablation_perturb.py"
@@ -150,24 +154,24 @@ rule ablation_summary:
     """Fig. 6 statistics: rule rewards (family bootstrap), attachment (Wilson, McNemar), projected
     fractions, tolerance sweep, bend point, perturbation."""
     input:
-        offsets=f"{ABL}/offsets.json",
-        rules=f"{ABL}/rules.parquet",
-        learned=f"{ABL}/selected_evaluation.parquet",
-        fixed=f"{POL}/eval/fixed.parquet",
-        bend=f"{ABL}/bend.json",
-        perturb=f"{ABL}/perturb.json",
+        offsets=f"{ABLATION_DIR}/offsets.json",
+        rules=f"{ABLATION_DIR}/rules.parquet",
+        learned=f"{ABLATION_DIR}/selected_evaluation.parquet",
+        fixed=f"{POLICY_DIR}/eval/fixed.parquet",
+        bend=f"{ABLATION_DIR}/bend.json",
+        perturb=f"{ABLATION_DIR}/perturb.json",
         code=imports("ablation_summary"),
     output:
-        f"{ABL}/summary.json",
+        f"{ABLATION_DIR}/summary.json",
     log:
         "logs/ablation/summary.log",
     conda:
         "../envs/esnap.yaml"
     params:
-        reward=PCFG["reward"],
-        tolerances=PCFG["tolerances_m"],
+        reward=POLICY_CONFIG["reward"],
+        tolerances=POLICY_CONFIG["tolerances_m"],
         seed=config["seed"],
-        n_boot=ACFG["bootstrap_resamples"],
+        n_boot=ABLATION_CONFIG["bootstrap_resamples"],
     script:
         "../workflow_scripts/ablation_summary.py"
 
@@ -175,7 +179,7 @@ rule ablation_summary:
 rule fig_ablation:
     """Fig. 6: timing reward and attachment per release rule, attachment over tolerance."""
     input:
-        summary=f"{ABL}/summary.json",
+        summary=f"{ABLATION_DIR}/summary.json",
         code=imports("fig_ablation"),
     output:
         pdf="results/figs/fig6_ablation.pdf",
@@ -196,11 +200,11 @@ rule fig_ablation:
 rule table_ablation_claims:
     """Every number of the ablation paragraphs beside the paper's value."""
     input:
-        summary=f"{ABL}/summary.json",
+        summary=f"{ABLATION_DIR}/summary.json",
         reference="reference/paper_values.yaml",
         code=imports("ablation_claims"),
     output:
-        f"{ABL}/claims.csv",
+        f"{ABLATION_DIR}/claims.csv",
     log:
         "logs/ablation/claims.log",
     conda:

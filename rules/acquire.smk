@@ -5,7 +5,7 @@
 
 # A rule per shard: the plan names each shard's groups before anything runs, so its recordings
 # are the rule's declared outputs and every job that reads one waits on exactly that rule
-# (docs/benchmarks.md, "Recordings as outputs"). The lineage reads each as the job
+# (docs/design.md, "Scheduling"). The lineage reads each as the job
 # twin_acquire(shard=...).
 for shard, gids in SHARDS.items():
 
@@ -16,7 +16,7 @@ for shard, gids in SHARDS.items():
             code=imports("twin_acquire"),
         output:
             recordings=group_files(gids),
-            acquired=f"results/twin/acquired/{shard}.json",
+            acquired=ACQUIRED.format(shard=shard),
         log:
             f"logs/twin_acquire/{shard}.log",
         benchmark:
@@ -36,7 +36,7 @@ for shard, gids in SHARDS.items():
 
 rule twin_index:
     input:
-        acquired=ancient(expand("results/twin/acquired/{shard}.json", shard=SHARDS)),
+        acquired=ancient(expand(ACQUIRED, shard=SHARDS)),
         code=imports("twin_index"),
     output:
         protected(f"{RAW}/index.csv"),

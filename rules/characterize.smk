@@ -3,11 +3,11 @@
 # records of their shards, and the package modules the fit imports (code), so the DAG shows what
 # fed each number.
 
-CHAR = "results/characterize"
+CHARACTERIZE_DIR = "results/characterize"
 
 
-CAL = dict(evidence_set="servo_calibration")
-CAL_GROUPS = sorted(select(**CAL).group_id)
+CALIBRATION = dict(evidence_set="servo_calibration")
+CALIBRATION_GROUPS = sorted(select(**CALIBRATION).group_id)
 HELD_GROUPS = sorted(select(evidence_set="held_base").group_id)
 SNAP_GROUPS = dict(evidence_set="dynamics", category="characterisation", role="train")
 
@@ -15,11 +15,11 @@ SNAP_GROUPS = dict(evidence_set="dynamics", category="characterisation", role="t
 rule characterize_kinematics:
     """Eq. 1: lever ratios d_p/k by quantile regression on the taut envelope; travel per tick."""
     input:
-        raw=raw_of(**CAL),
-        valid=validated(**CAL),
+        raw=raw_of(**CALIBRATION),
+        valid=validated(**CALIBRATION),
         code=imports("characterize_kinematics"),
     output:
-        f"{CHAR}/kinematics.json",
+        f"{CHARACTERIZE_DIR}/kinematics.json",
     log:
         "logs/characterize/kinematics.log",
     benchmark:
@@ -29,7 +29,7 @@ rule characterize_kinematics:
         "../envs/esnap.yaml"
     params:
         raw=raw_dir,
-        groups=CAL_GROUPS,
+        groups=CALIBRATION_GROUPS,
         quantile=config["characterize"]["envelope_quantile"],
         tendon_radius_m=config["rig"]["tendon_radius_m"],
         protocol=protocol_params("sampling"),
@@ -40,12 +40,12 @@ rule characterize_kinematics:
 rule characterize_servo:
     """First-order fit over all calibration bursts; Eq. 2 ceilings from the rated speed (config)."""
     input:
-        raw=raw_of(**CAL),
-        valid=validated(**CAL),
-        kinematics=f"{CHAR}/kinematics.json",
+        raw=raw_of(**CALIBRATION),
+        valid=validated(**CALIBRATION),
+        kinematics=f"{CHARACTERIZE_DIR}/kinematics.json",
         code=imports("characterize_servo"),
     output:
-        f"{CHAR}/servo.json",
+        f"{CHARACTERIZE_DIR}/servo.json",
     log:
         "logs/characterize/servo.log",
     benchmark:
@@ -55,7 +55,7 @@ rule characterize_servo:
         "../envs/esnap.yaml"
     params:
         raw=raw_dir,
-        groups=CAL_GROUPS,
+        groups=CALIBRATION_GROUPS,
         protocol=protocol_params("rig"),
     script:
         "../workflow_scripts/characterize_servo.py"
@@ -66,10 +66,10 @@ rule characterize_release:
     input:
         raw=raw_of(evidence_set="release_mode"),
         valid=validated(evidence_set="release_mode"),
-        servo=f"{CHAR}/servo.json",
+        servo=f"{CHARACTERIZE_DIR}/servo.json",
         code=imports("characterize_release"),
     output:
-        f"{CHAR}/release.json",
+        f"{CHARACTERIZE_DIR}/release.json",
     log:
         "logs/characterize/release.log",
     benchmark:
@@ -94,7 +94,7 @@ rule characterize_attachment:
         valid=validated(evidence_set="attachment"),
         code=imports("characterize_attachment"),
     output:
-        f"{CHAR}/attachment.json",
+        f"{CHARACTERIZE_DIR}/attachment.json",
     log:
         "logs/characterize/attachment.log",
     benchmark:
@@ -120,7 +120,7 @@ rule characterize_snap:
         valid=validated(**SNAP_GROUPS),
         code=imports("characterize_snap"),
     output:
-        f"{CHAR}/snap.json",
+        f"{CHARACTERIZE_DIR}/snap.json",
     log:
         "logs/characterize/snap.log",
     benchmark:
@@ -145,7 +145,7 @@ rule characterize_delay_sweep:
         valid=validated(evidence_set="delay_sweep"),
         code=imports("characterize_delay_sweep"),
     output:
-        f"{CHAR}/delay_sweep.json",
+        f"{CHARACTERIZE_DIR}/delay_sweep.json",
     log:
         "logs/characterize/delay_sweep.log",
     priority: reads_recordings
@@ -166,10 +166,10 @@ rule characterize_heldbase:
     input:
         raw=raw_of(evidence_set="held_base"),
         valid=validated(evidence_set="held_base"),
-        servo=f"{CHAR}/servo.json",
+        servo=f"{CHARACTERIZE_DIR}/servo.json",
         code=imports("characterize_heldbase"),
     output:
-        f"{CHAR}/heldbase.json",
+        f"{CHARACTERIZE_DIR}/heldbase.json",
     log:
         "logs/characterize/heldbase.log",
     benchmark:
@@ -192,17 +192,17 @@ rule characterize_heldbase:
 rule table_characterize_claims:
     """Every number of section III and V-C beside the paper's value."""
     input:
-        kinematics=f"{CHAR}/kinematics.json",
-        servo=f"{CHAR}/servo.json",
-        release=f"{CHAR}/release.json",
-        attachment=f"{CHAR}/attachment.json",
-        snap=f"{CHAR}/snap.json",
-        delay_sweep=f"{CHAR}/delay_sweep.json",
-        heldbase=f"{CHAR}/heldbase.json",
+        kinematics=f"{CHARACTERIZE_DIR}/kinematics.json",
+        servo=f"{CHARACTERIZE_DIR}/servo.json",
+        release=f"{CHARACTERIZE_DIR}/release.json",
+        attachment=f"{CHARACTERIZE_DIR}/attachment.json",
+        snap=f"{CHARACTERIZE_DIR}/snap.json",
+        delay_sweep=f"{CHARACTERIZE_DIR}/delay_sweep.json",
+        heldbase=f"{CHARACTERIZE_DIR}/heldbase.json",
         reference="reference/paper_values.yaml",
         code=imports("characterize_claims"),
     output:
-        f"{CHAR}/claims.csv",
+        f"{CHARACTERIZE_DIR}/claims.csv",
     log:
         "logs/characterize/claims.log",
     conda:
@@ -214,10 +214,10 @@ rule table_characterize_claims:
 rule fig_limits:
     """Fig. 2: rate ceilings, release speed distributions, attachment over speed and tilt."""
     input:
-        kinematics=f"{CHAR}/kinematics.json",
-        servo=f"{CHAR}/servo.json",
-        release=f"{CHAR}/release.json",
-        attachment=f"{CHAR}/attachment.json",
+        kinematics=f"{CHARACTERIZE_DIR}/kinematics.json",
+        servo=f"{CHARACTERIZE_DIR}/servo.json",
+        release=f"{CHARACTERIZE_DIR}/release.json",
+        attachment=f"{CHARACTERIZE_DIR}/attachment.json",
         code=imports("fig_limits"),
     output:
         pdf="results/figs/fig2_limits.pdf",
@@ -241,8 +241,8 @@ rule fig_limits:
 rule fig_snap:
     """Fig. 3: P_snap map with the operating point; speed, approach and attachment over delay."""
     input:
-        snap=f"{CHAR}/snap.json",
-        delay_sweep=f"{CHAR}/delay_sweep.json",
+        snap=f"{CHARACTERIZE_DIR}/snap.json",
+        delay_sweep=f"{CHARACTERIZE_DIR}/delay_sweep.json",
         code=imports("fig_snap"),
     output:
         pdf="results/figs/fig3_snap.pdf",

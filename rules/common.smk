@@ -21,7 +21,7 @@ from embodied_snap.plan import PlanError
 from embodied_snap.policy.evaluations import evaluations, training_targets
 from embodied_snap.rawformat import RecordingError, group_paths
 from embodied_snap.scheduling import local_runs_without_rate_limit
-from embodied_snap.verdicts import gate_tree
+from embodied_snap.verdicts import ACQUIRED, workflow_gate
 
 # A local run's scheduler without Snakemake's job rate limit, whose timers made the scheduler's own
 # CPU grow with every finished job (embodied_snap/scheduling.py).
@@ -51,19 +51,10 @@ try:
 except budget.BudgetError as e:
     sys.exit(f"error: {e}")
 
-# A protocol some stage cannot run stops the workflow here, in one line naming the stage.
-UNSUPPORTED = protocol.unsupported(config)
-if UNSUPPORTED:
-    raise WorkflowError(UNSUPPORTED)
-
 
 def protocol_params(*sections):
     """The protocol sections a job uses, as a param: a changed value reruns exactly those jobs."""
     return protocol.params(config, *sections)
-
-
-def _acquired(shard):
-    return not TWIN or Path(f"results/twin/acquired/{shard}.json").exists()
 
 
 # The plan and the gate decide before the DAG exists (docs/data.md, "The gate"): a broken
@@ -74,9 +65,7 @@ def _acquired(shard):
 # row once index.csv exists; with the simulated rig, a shard recorded during this run is judged by
 # its validate_shard job before any job reads it (validated).
 try:
-    PLAN, GATE = gate_tree(
-        config, RAW, ".snakemake/esnap/gate.json", recorded=_acquired
-    )
+    PLAN, GATE = workflow_gate(config)
 except (PlanError, RecordingError) as e:
     raise WorkflowError(f"error: {e}") from None
 EXCLUDED = PLAN.attrs["excluded"]
@@ -87,14 +76,16 @@ ROLE_SHARDS = {
     r: sorted(PLAN[PLAN.role == r].shard.unique())
     for r in ("train", "validation", "sealed")
 }
+# A shard resampled onto the protocol's grid (paper IV-A: 50 Hz): the one place its path is spelled,
+# results/data/50hz/{shard}.parquet, for the rule that writes it and every rule that reads it.
+RESAMPLED_SHARD = f"results/data/{protocol.GRID_HZ}hz/{{shard}}.parquet"
 
 
-# Job priorities (docs/benchmarks.md, "Scheduling and the run's critical path" and "Longest
-# first"): FIRST for a job that must not wait (it reads recordings, or it is a shared run or reads
-# only those), then LONG for the other policy searches, so that the short jobs (evaluations, GRU
-# validations, figures) fill the cores beside the last searches instead of delaying them; then
-# DRAW for a figure, the longest of the short jobs (matplotlib: 1.5-2 s, a claims table 0.5 s) and
-# what a rerun waits for; 0 else.
+# Job priorities (docs/design.md, "Scheduling"): FIRST for a job that must not wait (it reads
+# recordings, or it is a shared run or reads only those), then LONG for the other policy
+# searches, so that the short jobs (evaluations, GRU validations, figures) fill the cores beside
+# the last searches instead of delaying them; then DRAW for a figure, the longest of the short
+# jobs (matplotlib: 1.5-2 s, a claims table 0.5 s) and what a rerun waits for; 0 else.
 FIRST, LONG, DRAW = 3, 2, 1
 
 
@@ -223,50 +214,57 @@ FIG1_GROUP = min(select(evidence_set="attachment").group_id)
 
 # The dynamics model (rules/dynamics.smk): the GRU ensemble, and the training groups whose holds
 # the hold bank is built from.
-DYN = "results/dynamics"
-DCFG = config["dynamics"]
-DMODELS = expand(f"{DYN}/models/seed{{seed}}.pt", seed=DCFG["seeds"])
+DYNAMICS_DIR = "results/dynamics"
+DYNAMICS_CONFIG = config["dynamics"]
+DYNAMICS_MODELS = expand(
+    f"{DYNAMICS_DIR}/models/seed{{seed}}.pt", seed=DYNAMICS_CONFIG["seeds"]
+)
 HOLD = dict(evidence_set="dynamics", role="train")
 HOLD_GROUPS = sorted(select(**HOLD).group_id)
 
 # Policy search (rules/policy.smk): the runs of every architecture and seed, the shared ones that
 # the ablation and the deployment read, and the simulator each later stage rolls policies out in.
-POL = "results/policy"
-PCFG = config["policy"]
-PBUDGET = BUDGET["policy"]
+POLICY_DIR = "results/policy"
+POLICY_CONFIG = config["policy"]
+POLICY_BUDGET = BUDGET["policy"]
 POLICY_RUNS_OF = [
-    (arch, seed) for arch, n in PBUDGET["seeds"].items() for seed in range(n)
+    (arch, seed) for arch, n in POLICY_BUDGET["seeds"].items() for seed in range(n)
 ]
 # The target sets a search draws: training ones for every generation, selection, evaluation.
 TARGET_SIZES = dict(
-    training=training_targets(PBUDGET["generations"], PBUDGET["targets_per_candidate"]),
-    selection=PBUDGET["selection_targets"],
-    evaluation=PBUDGET["evaluation_targets"],
+    training=training_targets(
+        POLICY_BUDGET["generations"], POLICY_BUDGET["targets_per_candidate"]
+    ),
+    selection=POLICY_BUDGET["selection_targets"],
+    evaluation=POLICY_BUDGET["evaluation_targets"],
 )
-POLICY_RUNS = [f"{POL}/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF]
-POLICY_EVALS = [f"{POL}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF]
+POLICY_RUNS = [f"{POLICY_DIR}/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF]
+POLICY_EVALUATIONS = [
+    f"{POLICY_DIR}/eval/{a}_seed{s}.parquet" for a, s in POLICY_RUNS_OF
+]
 SHARED_RUNS = [
-    f"{POL}/runs/shared_seed{s}.json" for s in range(PBUDGET["seeds"]["shared"])
+    f"{POLICY_DIR}/runs/shared_seed{s}.json"
+    for s in range(POLICY_BUDGET["seeds"]["shared"])
 ]
 SIMULATOR = dict(
-    models=DMODELS,
-    bank=f"{DYN}/hold_bank.npz",
+    models=DYNAMICS_MODELS,
+    bank=f"{DYNAMICS_DIR}/hold_bank.npz",
     snap="results/characterize/snap.json",
-    workspace=f"{POL}/workspace.json",
+    workspace=f"{POLICY_DIR}/workspace.json",
 )
 # The policy config a job's params carry: how the searches are scheduled (policy.batch_runs) is no
 # job's param, so switching it reruns only the searches.
-POLICY_PARAMS = {k: v for k, v in PCFG.items() if k != "batch_runs"}
-SIM_PARAMS = dict(
+POLICY_PARAMS = {k: v for k, v in POLICY_CONFIG.items() if k != "batch_runs"}
+SIMULATOR_PARAMS = dict(
     policy=POLICY_PARAMS,
-    after_s1=DCFG["after_s1_s"],
+    after_s1=DYNAMICS_CONFIG["after_s1_s"],
     ee_m=config["rig"]["end_effector_m"],
     protocol=protocol_params("sampling", "windows", "primitive"),
 )
 
 # A job that rolls the ensemble out holds the GPU when config policy.device is cuda (profiles/slurm:
 # --gpus=1); auto is decided on the node, so it asks for none.
-SIM_RESOURCES = dict(gpu=int(PCFG["device"] == "cuda"))
+SIMULATOR_RESOURCES = dict(gpu=int(POLICY_CONFIG["device"] == "cuda"))
 
 
 def shared_run(wildcards):
@@ -274,7 +272,8 @@ def shared_run(wildcards):
     and the deployment read."""
     return (
         FIRST
-        if f"{POL}/runs/{wildcards.arch}_seed{wildcards.seed}.json" in SHARED_RUNS
+        if f"{POLICY_DIR}/runs/{wildcards.arch}_seed{wildcards.seed}.json"
+        in SHARED_RUNS
         else 0
     )
 
@@ -288,17 +287,17 @@ def search_priority(wildcards):
 # or the simulated rig records them: Table II and Fig. 7 are built. On a real rig they are recorded
 # in the lab after export (`esnap deploy`, docs/deployment.md); until then the workflow builds the
 # manifest and stops there.
-DEPLOY = "results/deployment"
-DEPLOY_RAW = deployment_dir(RAW)
-DEPLOYED = TWIN or Path(DEPLOY_RAW, "index.csv").exists()
+DEPLOYMENT_DIR = "results/deployment"
+DEPLOYMENT_RAW = deployment_dir(RAW)
+DEPLOYED = TWIN or Path(DEPLOYMENT_RAW, "index.csv").exists()
 # Everything the manifest hashes: the separation proof re-hashes them (nothing changed after export).
 MANIFEST_INPUTS = dict(
     runs=SHARED_RUNS,
-    workspace=f"{POL}/workspace.json",
+    workspace=f"{POLICY_DIR}/workspace.json",
     servo="results/characterize/servo.json",
-    bank=f"{DYN}/hold_bank.npz",
+    bank=f"{DYNAMICS_DIR}/hold_bank.npz",
     snap="results/characterize/snap.json",
-    models=DMODELS,
+    models=DYNAMICS_MODELS,
 )
 MANIFEST_FILES = [
     f for v in MANIFEST_INPUTS.values() for f in (v if isinstance(v, list) else [v])

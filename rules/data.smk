@@ -68,7 +68,7 @@ rule resample_shard:
         valid="results/raw/shards/{shard}.json",
         code=imports("resample_shard"),
     output:
-        "results/data/50hz/{shard}.parquet",
+        RESAMPLED_SHARD,
     log:
         "logs/resample_shard/{shard}.log",
     benchmark:
@@ -132,9 +132,7 @@ rule windows:
     """Windows of one split (20-step history, 5-step look-ahead, 25-step horizon), from that split's
     shards only: the DAG itself shows what each model saw."""
     input:
-        shards=lambda wc: expand(
-            "results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS[wc.role]
-        ),
+        shards=lambda wc: expand(RESAMPLED_SHARD, shard=ROLE_SHARDS[wc.role]),
         split="results/splits/split.csv",
         code=imports("windows"),
     output:

@@ -1,12 +1,13 @@
 # Deployment (paper VI, Table II, Fig. 7; docs/deployment.md): the manifest exported from the
 # selected shared policy, the trials run through `esnap deploy` (with the simulated rig: over the
-# virtual Dynamixel bus; with a real rig: recorded in the lab into DEPLOY_RAW), Table II and Fig. 7.
+# virtual Dynamixel bus; with a real rig: recorded in the lab into DEPLOYMENT_RAW), Table II and
+# Fig. 7.
 # The deployment recordings feed only Table II and Fig. 7 (esnap check-separation).
 
-# DEPLOY, DEPLOY_RAW, DEPLOYED and the manifest's inputs (MANIFEST_INPUTS, MANIFEST_FILES), which
-# the lineage and the report read too, are rules/common.smk's.
-DCONF = config["deployment"]
-DBUDGET = BUDGET["deployment"]
+# DEPLOYMENT_DIR, DEPLOYMENT_RAW, DEPLOYED and the manifest's inputs (MANIFEST_INPUTS,
+# MANIFEST_FILES), which the lineage and the report read too, are rules/common.smk's.
+DEPLOYMENT_CONFIG = config["deployment"]
+DEPLOYMENT_BUDGET = BUDGET["deployment"]
 
 
 rule deploy_manifest:
@@ -17,16 +18,16 @@ rule deploy_manifest:
         schema="schemas/deployment_manifest.schema.json",
         code=imports("deploy_manifest"),
     output:
-        f"{DEPLOY}/manifest.json",
+        f"{DEPLOYMENT_DIR}/manifest.json",
     log:
         "logs/deployment/manifest.log",
     priority: FIRST  # reads the shared runs (rules/policy.smk)
     conda:
         "../envs/esnap.yaml"
     params:
-        deployment=DCONF,
+        deployment=DEPLOYMENT_CONFIG,
         policy=POLICY_PARAMS,
-        placements=DBUDGET["placements"],
+        placements=DEPLOYMENT_BUDGET["placements"],
         protocol=protocol_params("primitive", "rig"),
     script:
         "../workflow_scripts/deploy_manifest.py"
@@ -37,12 +38,12 @@ if TWIN:
     rule twin_deployment:
         """The trials through the virtual Dynamixel bus on the simulated rig, side by side."""
         input:
-            manifest=f"{DEPLOY}/manifest.json",
+            manifest=f"{DEPLOYMENT_DIR}/manifest.json",
             code=imports("twin_deployment"),
         output:
-            index=f"{DEPLOY_RAW}/index.csv",
-            groups=directory(f"{DEPLOY_RAW}/groups"),
-            aborted=f"{DEPLOY_RAW}/aborted.json",
+            index=f"{DEPLOYMENT_RAW}/index.csv",
+            groups=directory(f"{DEPLOYMENT_RAW}/groups"),
+            aborted=f"{DEPLOYMENT_RAW}/aborted.json",
         log:
             "logs/deployment/trials.log",
         benchmark:
@@ -54,8 +55,8 @@ if TWIN:
             "../envs/esnap.yaml"
         params:
             at_a_time=config["twin"]["trials_at_a_time"],
-            placements=DBUDGET["placements"],
-            trials_per_placement=DBUDGET["trials_per_placement"],
+            placements=DEPLOYMENT_BUDGET["placements"],
+            trials_per_placement=DEPLOYMENT_BUDGET["trials_per_placement"],
             seed=config["seed"],
             sessions=config["sessions"],
             dt=config["twin"]["dt"],
@@ -70,16 +71,16 @@ if DEPLOYED:
     rule deploy_table:
         """Table II from the deployment recordings, and results/deployment/claims.csv."""
         input:
-            index=f"{DEPLOY_RAW}/index.csv",
-            groups=f"{DEPLOY_RAW}/groups",
-            aborted=f"{DEPLOY_RAW}/aborted.json",
-            manifest=f"{DEPLOY}/manifest.json",
+            index=f"{DEPLOYMENT_RAW}/index.csv",
+            groups=f"{DEPLOYMENT_RAW}/groups",
+            aborted=f"{DEPLOYMENT_RAW}/aborted.json",
+            manifest=f"{DEPLOYMENT_DIR}/manifest.json",
             reference="reference/paper_values.yaml",
             code=imports("deploy_table"),
         output:
-            trials=f"{DEPLOY}/trials.csv",
-            summary=f"{DEPLOY}/summary.json",
-            claims=f"{DEPLOY}/claims.csv",
+            trials=f"{DEPLOYMENT_DIR}/trials.csv",
+            summary=f"{DEPLOYMENT_DIR}/summary.json",
+            claims=f"{DEPLOYMENT_DIR}/claims.csv",
             csv="results/tables/table2_deployment.csv",
             md="results/tables/table2_deployment.md",
             tex="results/tables/table2_deployment.tex",
@@ -94,8 +95,8 @@ if DEPLOYED:
         conda:
             "../envs/esnap.yaml"
         params:
-            bend_deg=DCONF["preload_bend_deg"],
-            fast_mps=DCONF["fast_snap_mps"],
+            bend_deg=DEPLOYMENT_CONFIG["preload_bend_deg"],
+            fast_mps=DEPLOYMENT_CONFIG["fast_snap_mps"],
             protocol=protocol_params("sampling"),
         script:
             "../workflow_scripts/deploy_table.py"
@@ -104,8 +105,8 @@ if DEPLOYED:
         """Fig. 7: a successful trial recorded (top) and predicted by the dynamics model (bottom)."""
         input:
             **SIMULATOR,
-            trials=f"{DEPLOY}/trials.csv",
-            groups=f"{DEPLOY_RAW}/groups",
+            trials=f"{DEPLOYMENT_DIR}/trials.csv",
+            groups=f"{DEPLOYMENT_RAW}/groups",
             code=imports("fig_deployment"),
         output:
             pdf="results/figs/fig7_deployment.pdf",
@@ -122,8 +123,8 @@ if DEPLOYED:
         conda:
             "../envs/esnap.yaml"
         resources:
-            **SIM_RESOURCES,
+            **SIMULATOR_RESOURCES,
         params:
-            **SIM_PARAMS,
+            **SIMULATOR_PARAMS,
         script:
             "../workflow_scripts/fig_deployment.py"

@@ -3,9 +3,12 @@
 # model, Fig. 4 and results/dynamics/claims.csv. Training and model selection see the train and
 # validation windows only; windows_sealed.npz reaches dynamics_sealed_eval alone, after selection.
 
-# DYN, DCFG, DMODELS, HOLD and HOLD_GROUPS, which later stages read too, are rules/common.smk's.
-DSEEDS = DCFG["seeds"]
-DVALID = expand(f"{DYN}/validation/seed{{seed}}.json", seed=DSEEDS)
+# DYNAMICS_DIR, DYNAMICS_CONFIG, DYNAMICS_MODELS, HOLD and HOLD_GROUPS, which later stages read too,
+# are rules/common.smk's.
+DYNAMICS_SEEDS = DYNAMICS_CONFIG["seeds"]
+DYNAMICS_VALIDATIONS = expand(
+    f"{DYNAMICS_DIR}/validation/seed{{seed}}.json", seed=DYNAMICS_SEEDS
+)
 SWEEP = dict(evidence_set="delay_sweep")
 SWEEP_SHARDS = sorted(PLAN[PLAN.evidence_set == "delay_sweep"].shard.unique())
 
@@ -21,27 +24,27 @@ rule dynamics_train:
         validation="results/splits/windows_validation.npz",
         code=imports("dynamics_train"),
     output:
-        model=f"{DYN}/models/seed{{seed}}.pt",
-        curve=f"{DYN}/models/seed{{seed}}_curve.csv",
+        model=f"{DYNAMICS_DIR}/models/seed{{seed}}.pt",
+        curve=f"{DYNAMICS_DIR}/models/seed{{seed}}_curve.csv",
     log:
         "logs/dynamics/train_seed{seed}.log",
     benchmark:
         "benchmarks/dynamics/train_seed{seed}.tsv"
     conda:
         "../envs/esnap.yaml"
-    threads: DCFG["threads"]
+    threads: DYNAMICS_CONFIG["threads"]
     resources:
         # one GPU from the cluster when the config trains on cuda (profiles/slurm: --gpus=1)
-        gpu=int(DCFG["device"] == "cuda"),
+        gpu=int(DYNAMICS_CONFIG["device"] == "cuda"),
     params:
         seed=lambda wc: int(wc.seed),
-        device=DCFG["device"],
+        device=DYNAMICS_CONFIG["device"],
         epochs=BUDGET["dynamics"]["epochs"],
         windows_per_epoch=BUDGET["dynamics"]["windows_per_epoch"],
-        lr=DCFG["lr"],
-        batch_size=DCFG["batch_size"],
-        patience=DCFG["patience"],
-        val_windows=DCFG["val_windows"],
+        lr=DYNAMICS_CONFIG["lr"],
+        batch_size=DYNAMICS_CONFIG["batch_size"],
+        patience=DYNAMICS_CONFIG["patience"],
+        val_windows=DYNAMICS_CONFIG["val_windows"],
     script:
         "../workflow_scripts/dynamics_train.py"
 
@@ -50,21 +53,23 @@ rule dynamics_train:
 # of up to workflow.cores threads: three one-core jobs on two cores leave one idle while the third
 # trains alone. Each seed's model is the one its own job gives; a cluster keeps a job per seed
 # (profiles/slurm).
-if DCFG["seeds_in_one_job"]:
+if DYNAMICS_CONFIG["seeds_in_one_job"]:
 
     ruleorder: dynamics_train_seeds > dynamics_train
 
     use rule dynamics_train as dynamics_train_seeds with:
         output:
-            model=expand(f"{DYN}/models/seed{{seed}}.pt", seed=DSEEDS),
-            curve=expand(f"{DYN}/models/seed{{seed}}_curve.csv", seed=DSEEDS),
+            model=expand(f"{DYNAMICS_DIR}/models/seed{{seed}}.pt", seed=DYNAMICS_SEEDS),
+            curve=expand(
+                f"{DYNAMICS_DIR}/models/seed{{seed}}_curve.csv", seed=DYNAMICS_SEEDS
+            ),
         log:
             "logs/dynamics/train_seeds.log",
         benchmark:
             "benchmarks/dynamics/train_seeds.tsv"
-        threads: min(len(DSEEDS) * DCFG["threads"], workflow.cores)
+        threads: min(len(DYNAMICS_SEEDS) * DYNAMICS_CONFIG["threads"], workflow.cores)
         params:
-            seed=DSEEDS,
+            seed=DYNAMICS_SEEDS,
 
 
 rule dynamics_persistence:
@@ -73,7 +78,7 @@ rule dynamics_persistence:
         validation="results/splits/windows_validation.npz",
         code=imports("dynamics_persistence"),
     output:
-        f"{DYN}/validation/persistence.json",
+        f"{DYNAMICS_DIR}/validation/persistence.json",
     log:
         "logs/dynamics/persistence.log",
     conda:
@@ -87,16 +92,16 @@ rule dynamics_persistence:
 rule dynamics_validate:
     """Validation tip error over h = 1..35 of one selected seed; carried-state vs re-encoded gap."""
     input:
-        model=f"{DYN}/models/seed{{seed}}.pt",
+        model=f"{DYNAMICS_DIR}/models/seed{{seed}}.pt",
         validation="results/splits/windows_validation.npz",
         code=imports("dynamics_validate"),
     output:
-        f"{DYN}/validation/seed{{seed}}.json",
+        f"{DYNAMICS_DIR}/validation/seed{{seed}}.json",
     log:
         "logs/dynamics/validate_seed{seed}.log",
     conda:
         "../envs/esnap.yaml"
-    threads: DCFG["threads"]
+    threads: DYNAMICS_CONFIG["threads"]
     params:
         protocol=protocol_params("sampling", "rig"),
     script:
@@ -107,19 +112,19 @@ rule dynamics_sealed_eval:
     """The single sealed evaluation: every selected seed and persistence, once, on all sealed windows.
     Listed after the validation results so that it runs only after model selection."""
     input:
-        models=DMODELS,
-        selected=DVALID,
+        models=DYNAMICS_MODELS,
+        selected=DYNAMICS_VALIDATIONS,
         sealed="results/splits/windows_sealed.npz",
         code=imports("dynamics_sealed_eval"),
     output:
-        f"{DYN}/sealed/eval.json",
+        f"{DYNAMICS_DIR}/sealed/eval.json",
     log:
         "logs/dynamics/sealed_eval.log",
     conda:
         "../envs/esnap.yaml"
-    threads: DCFG["threads"]
+    threads: DYNAMICS_CONFIG["threads"]
     params:
-        seeds=DSEEDS,
+        seeds=DYNAMICS_SEEDS,
         protocol=protocol_params("sampling", "rig"),
     script:
         "../workflow_scripts/dynamics_sealed_eval.py"
@@ -129,20 +134,20 @@ rule dynamics_gate:
     """Measured vs predicted peak tip speed and travel over the excluded delay sweep, per seed,
     rolled out from each trial's hold through the S2 and S1 releases."""
     input:
-        models=DMODELS,
-        shards=expand("results/data/50hz/{shard}.parquet", shard=SWEEP_SHARDS),
+        models=DYNAMICS_MODELS,
+        shards=expand(RESAMPLED_SHARD, shard=SWEEP_SHARDS),
         metas=metas_of(**SWEEP),
         code=imports("dynamics_gate"),
     output:
-        f"{DYN}/gate.json",
+        f"{DYNAMICS_DIR}/gate.json",
     log:
         "logs/dynamics/gate.log",
     priority: reads_recordings
     conda:
         "../envs/esnap.yaml"
     params:
-        seeds=DSEEDS,
-        after_s1=DCFG["after_s1_s"],
+        seeds=DYNAMICS_SEEDS,
+        after_s1=DYNAMICS_CONFIG["after_s1_s"],
         protocol=protocol_params("sampling", "windows"),
     script:
         "../workflow_scripts/dynamics_gate.py"
@@ -152,12 +157,12 @@ rule dynamics_hold:
     """Hold bank (pre-S2-release configurations) of the training-split dynamics groups, canonical
     bearing; leave-one-session-out hold errors."""
     input:
-        shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
+        shards=expand(RESAMPLED_SHARD, shard=ROLE_SHARDS["train"]),
         metas=metas_of(**HOLD),
         code=imports("dynamics_hold"),
     output:
-        bank=f"{DYN}/hold_bank.npz",
-        summary=f"{DYN}/hold.json",
+        bank=f"{DYNAMICS_DIR}/hold_bank.npz",
+        summary=f"{DYNAMICS_DIR}/hold.json",
     log:
         "logs/dynamics/hold.log",
     priority: reads_recordings
@@ -173,15 +178,15 @@ rule dynamics_hold:
 rule table_dynamics_claims:
     """Every number of section IV-A beside the paper's value."""
     input:
-        persistence=f"{DYN}/validation/persistence.json",
-        validation=DVALID,
-        sealed=f"{DYN}/sealed/eval.json",
-        gate=f"{DYN}/gate.json",
-        hold=f"{DYN}/hold.json",
+        persistence=f"{DYNAMICS_DIR}/validation/persistence.json",
+        validation=DYNAMICS_VALIDATIONS,
+        sealed=f"{DYNAMICS_DIR}/sealed/eval.json",
+        gate=f"{DYNAMICS_DIR}/gate.json",
+        hold=f"{DYNAMICS_DIR}/hold.json",
         reference="reference/paper_values.yaml",
         code=imports("dynamics_claims"),
     output:
-        f"{DYN}/claims.csv",
+        f"{DYNAMICS_DIR}/claims.csv",
     log:
         "logs/dynamics/claims.log",
     conda:
@@ -193,9 +198,9 @@ rule table_dynamics_claims:
 rule fig_gates:
     """Fig. 4: validation tip error over the horizon; peak speed and travel over the delay sweep."""
     input:
-        persistence=f"{DYN}/validation/persistence.json",
-        validation=DVALID,
-        gate=f"{DYN}/gate.json",
+        persistence=f"{DYNAMICS_DIR}/validation/persistence.json",
+        validation=DYNAMICS_VALIDATIONS,
+        gate=f"{DYNAMICS_DIR}/gate.json",
         code=imports("fig_gates"),
     output:
         pdf="results/figs/fig4_gates.pdf",

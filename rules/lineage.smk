@@ -14,7 +14,7 @@ rule check_separation_dag:
         raw=ancient_raw_of(),
         valid=ancient(validated()),
         split="results/splits/split.csv",
-        deployment_index=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
+        deployment_index=[f"{DEPLOYMENT_RAW}/index.csv"] if DEPLOYED else [],
         code=imports("check_separation_dag"),
     output:
         "results/lineage/separation_dag.json",
@@ -43,9 +43,9 @@ rule check_separation:
         # the claims tables come after every model, policy and target set: all records exist
         claims=claims_tables,
         # the deployment recordings and the manifest they ran: nothing upstream changed after export
-        deployment_index=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
-        deployment_groups=[f"{DEPLOY_RAW}/groups"] if DEPLOYED else [],
-        deployment_manifest=f"{DEPLOY}/manifest.json",
+        deployment_index=[f"{DEPLOYMENT_RAW}/index.csv"] if DEPLOYED else [],
+        deployment_groups=[f"{DEPLOYMENT_RAW}/groups"] if DEPLOYED else [],
+        deployment_manifest=f"{DEPLOYMENT_DIR}/manifest.json",
         manifest_inputs=MANIFEST_FILES,
         code=imports("check_separation"),
     output:

@@ -3,23 +3,24 @@
 # targets, the best fixed primitive, the analyses, Fig. 5 and results/policy/claims.csv.
 # Evaluation targets are read only by policy_evaluate and policy_fixed (esnap check-separation).
 
-# POL, PCFG, PBUDGET, the runs (POLICY_RUNS_OF, POLICY_RUNS, POLICY_EVALS, SHARED_RUNS) and the
-# simulator (SIMULATOR, SIM_PARAMS), which later stages read too, are rules/common.smk's.
+# POLICY_DIR, POLICY_CONFIG, POLICY_BUDGET, the runs (POLICY_RUNS_OF, POLICY_RUNS, POLICY_EVALUATIONS,
+# SHARED_RUNS) and the simulator (SIMULATOR, SIMULATOR_PARAMS), which later stages read too, are
+# rules/common.smk's.
 
 
 wildcard_constraints:
-    arch="|".join(PBUDGET["seeds"]),
+    arch="|".join(POLICY_BUDGET["seeds"]),
 
 
 rule policy_workspace:
     """Strike cloud, strike-bearing offset and directional workspace of the training groups."""
     input:
-        shards=expand("results/data/50hz/{shard}.parquet", shard=ROLE_SHARDS["train"]),
+        shards=expand(RESAMPLED_SHARD, shard=ROLE_SHARDS["train"]),
         metas=metas_of(**HOLD),
-        bank=f"{DYN}/hold_bank.npz",
+        bank=f"{DYNAMICS_DIR}/hold_bank.npz",
         code=imports("policy_workspace"),
     output:
-        f"{POL}/workspace.json",
+        f"{POLICY_DIR}/workspace.json",
     log:
         "logs/policy/workspace.log",
     priority: reads_recordings
@@ -27,7 +28,7 @@ rule policy_workspace:
         "../envs/esnap.yaml"
     params:
         groups=HOLD_GROUPS,
-        after_s1=DCFG["after_s1_s"],
+        after_s1=DYNAMICS_CONFIG["after_s1_s"],
         ee_m=config["rig"]["end_effector_m"],
         protocol=protocol_params("primitive"),
     script:
@@ -37,22 +38,22 @@ rule policy_workspace:
 rule policy_targets:
     """Training (per generation), selection and evaluation targets, each set from its own seed."""
     input:
-        workspace=f"{POL}/workspace.json",
+        workspace=f"{POLICY_DIR}/workspace.json",
         code=imports("policy_targets"),
     output:
-        training=f"{POL}/targets_training.parquet",
-        selection=f"{POL}/targets_selection.parquet",
-        evaluation=f"{POL}/targets_evaluation.parquet",
+        training=f"{POLICY_DIR}/targets_training.parquet",
+        selection=f"{POLICY_DIR}/targets_selection.parquet",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
     log:
         "logs/policy/targets.log",
     conda:
         "../envs/esnap.yaml"
     params:
         sizes=TARGET_SIZES,
-        per_generation=PBUDGET["targets_per_candidate"],
-        seeds=PCFG["target_seeds"],
-        arc_deg=PCFG["arc_deg"],
-        jitter_m=PCFG["target_jitter_m"],
+        per_generation=POLICY_BUDGET["targets_per_candidate"],
+        seeds=POLICY_CONFIG["target_seeds"],
+        arc_deg=POLICY_CONFIG["arc_deg"],
+        jitter_m=POLICY_CONFIG["target_jitter_m"],
     script:
         "../workflow_scripts/policy_targets.py"
 
@@ -61,12 +62,12 @@ rule policy_search:
     """CMA-ES for one architecture and seed; held-out reward on the selection targets per generation."""
     input:
         **SIMULATOR,
-        training=f"{POL}/targets_training.parquet",
-        selection=f"{POL}/targets_selection.parquet",
+        training=f"{POLICY_DIR}/targets_training.parquet",
+        selection=f"{POLICY_DIR}/targets_selection.parquet",
         code=imports("policy_search"),
     output:
-        run=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
-        state=f"{POL}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+        run=f"{POLICY_DIR}/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{POLICY_DIR}/runs/{{arch}}_seed{{seed}}.cma.pkl",
     log:
         "logs/policy/search_{arch}_seed{seed}.log",
     benchmark:
@@ -79,17 +80,17 @@ rule policy_search:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         runs=lambda wc: [(wc.arch, int(wc.seed))],
-        generations=PBUDGET["generations"],
-        popsize=PBUDGET["popsize"],
-        start=PCFG["start"],
+        generations=POLICY_BUDGET["generations"],
+        popsize=POLICY_BUDGET["popsize"],
+        start=POLICY_CONFIG["start"],
         # where a smaller budget would have stopped: its selection is kept (rules/robustness.smk)
         snapshots=[
-            round(f * PBUDGET["generations"])
-            for f in PCFG["robustness"]["budget_factors"].values()
+            round(f * POLICY_BUDGET["generations"])
+            for f in POLICY_CONFIG["robustness"]["budget_factors"].values()
             if f < 1
         ],
     script:
@@ -99,7 +100,7 @@ rule policy_search:
 # With config policy.batch_runs the benchmark's runs are one job instead: every run's generation
 # in one batch of rollouts, the schedule for a GPU (docs/cluster.md, "One GPU"). Each run draws
 # from its own generator, so it is the run policy_search makes, up to the batch's rounding.
-if PCFG["batch_runs"]:
+if POLICY_CONFIG["batch_runs"]:
 
     ruleorder: policy_search_lockstep > policy_search
 
@@ -121,11 +122,11 @@ rule policy_evaluate:
     """The selected policy of one run on the evaluation targets."""
     input:
         **SIMULATOR,
-        run=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
-        evaluation=f"{POL}/targets_evaluation.parquet",
+        run=f"{POLICY_DIR}/runs/{{arch}}_seed{{seed}}.json",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
         code=imports("policy_evaluate"),
     output:
-        f"{POL}/eval/{{arch}}_seed{{seed}}.parquet",
+        f"{POLICY_DIR}/eval/{{arch}}_seed{{seed}}.parquet",
     log:
         "logs/policy/evaluate_{arch}_seed{seed}.log",
     priority: shared_run
@@ -133,9 +134,9 @@ rule policy_evaluate:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
     script:
         "../workflow_scripts/policy_evaluate.py"
 
@@ -144,12 +145,12 @@ rule policy_fixed:
     """The best of the fixed primitives on the selection targets, evaluated on the evaluation targets."""
     input:
         **SIMULATOR,
-        selection=f"{POL}/targets_selection.parquet",
-        evaluation=f"{POL}/targets_evaluation.parquet",
+        selection=f"{POLICY_DIR}/targets_selection.parquet",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
         code=imports("policy_fixed"),
     output:
-        eval=f"{POL}/eval/fixed.parquet",
-        summary=f"{POL}/fixed.json",
+        eval=f"{POLICY_DIR}/eval/fixed.parquet",
+        summary=f"{POLICY_DIR}/fixed.json",
     log:
         "logs/policy/fixed.log",
     benchmark:
@@ -158,9 +159,9 @@ rule policy_fixed:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         seed=config["seed"],
     script:
         "../workflow_scripts/policy_fixed.py"
@@ -173,23 +174,23 @@ rule policy_summary:
     """
     input:
         runs=POLICY_RUNS,
-        evals=POLICY_EVALS,
-        fixed=f"{POL}/eval/fixed.parquet",
+        evals=POLICY_EVALUATIONS,
+        fixed=f"{POLICY_DIR}/eval/fixed.parquet",
         code=imports("policy_summary"),
     output:
-        f"{POL}/summary.json",
+        f"{POLICY_DIR}/summary.json",
     log:
         "logs/policy/summary.log",
     conda:
         "../envs/esnap.yaml"
     params:
-        tolerances=PCFG["tolerances_m"],
-        d_f=PCFG["reward"]["d_f_m"],
-        v_min=PCFG["reward"]["v_min_sim_mps"],
+        tolerances=POLICY_CONFIG["tolerances_m"],
+        d_f=POLICY_CONFIG["reward"]["d_f_m"],
+        v_min=POLICY_CONFIG["reward"]["v_min_sim_mps"],
         budget_evaluations=evaluations(
-            PBUDGET["generations"],
-            PBUDGET["popsize"],
-            PBUDGET["targets_per_candidate"],
+            POLICY_BUDGET["generations"],
+            POLICY_BUDGET["popsize"],
+            POLICY_BUDGET["targets_per_candidate"],
         ),
         protocol=protocol_params("primitive"),
     script:
@@ -199,7 +200,7 @@ rule policy_summary:
 rule fig_benchmark:
     """Fig. 5: held-out reward over evaluations, attachment over tolerance, evaluations to reach."""
     input:
-        summary=f"{POL}/summary.json",
+        summary=f"{POLICY_DIR}/summary.json",
         code=imports("fig_benchmark"),
     output:
         pdf="results/figs/fig5_benchmark.pdf",
@@ -220,11 +221,11 @@ rule fig_benchmark:
 rule table_policy_claims:
     """Every architecture and generalisation number of sections V-A and V-B beside the paper's value."""
     input:
-        summary=f"{POL}/summary.json",
+        summary=f"{POLICY_DIR}/summary.json",
         reference="reference/paper_values.yaml",
         code=imports("policy_claims"),
     output:
-        f"{POL}/claims.csv",
+        f"{POLICY_DIR}/claims.csv",
     log:
         "logs/policy/claims.log",
     conda:

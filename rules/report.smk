@@ -58,7 +58,7 @@ rule fig_system:
         raw=raw_of(group_id=FIG1_GROUP),
         validated=validated(group_id=FIG1_GROUP),
         summary="results/policy/summary.json",
-        evals=[e for e in POLICY_EVALS if Path(e).stem.startswith("shared_seed")],
+        evals=[e for e in POLICY_EVALUATIONS if Path(e).stem.startswith("shared_seed")],
         code=imports("fig_system"),
     output:
         pdf="results/figs/fig1_system.pdf",
@@ -87,7 +87,7 @@ rule table_evidence:
         index=raw_index(),
         split="results/splits/split.csv",
         # the deployment trials' own index (recorded after export): their row's n
-        deployment_index=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
+        deployment_index=[f"{DEPLOYMENT_RAW}/index.csv"] if DEPLOYED else [],
         static="report/table1_evidence.rst",
         code=imports("table_evidence"),
     output:
@@ -123,7 +123,7 @@ rule table_claims:
         docs=sorted(glob.glob("docs/*.md")),
         index=raw_index(),
         # the deployment trials' evidence set, for the Table II numbers' recordings
-        trials=[f"{DEPLOY_RAW}/index.csv"] if DEPLOYED else [],
+        trials=[f"{DEPLOYMENT_RAW}/index.csv"] if DEPLOYED else [],
         split="results/splits/split.csv",
         manifest="results/raw/manifest.json",
         code=imports("table_claims"),

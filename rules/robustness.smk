@@ -5,23 +5,23 @@
 # there selects exactly that); a larger one continues each run from its CMA-ES state on further
 # training targets. Results: results/robustness/{summary.json,claims.csv}, Fig. S1.
 
-ROB = "results/robustness"
-RCFG = PCFG["robustness"]
-GENERATIONS = PBUDGET["generations"]
+ROBUSTNESS_DIR = "results/robustness"
+ROBUSTNESS_CONFIG = POLICY_CONFIG["robustness"]
+GENERATIONS = POLICY_BUDGET["generations"]
 BUDGET_GENERATIONS = {
-    v: round(f * GENERATIONS) for v, f in RCFG["budget_factors"].items()
+    v: round(f * GENERATIONS) for v, f in ROBUSTNESS_CONFIG["budget_factors"].items()
 }
 SHORTER = [v for v, g in BUDGET_GENERATIONS.items() if g < GENERATIONS]
 LONGER = [v for v, g in BUDGET_GENERATIONS.items() if g > GENERATIONS]
-ROB_VARIANTS = ["uniform", *BUDGET_GENERATIONS]
+ROBUSTNESS_VARIANTS = ["uniform", *BUDGET_GENERATIONS]
 UNIFORM_TARGETS = {
-    n: f"{ROB}/uniform/targets_{n}.parquet"
+    n: f"{ROBUSTNESS_DIR}/uniform/targets_{n}.parquet"
     for n in ("training", "selection", "evaluation")
 }
 
 
 wildcard_constraints:
-    variant="|".join(ROB_VARIANTS),
+    variant="|".join(ROBUSTNESS_VARIANTS),
     longer="|".join(LONGER) or "-",
 
 
@@ -30,11 +30,11 @@ rule robustness_targets:
     training targets of the generations the continued runs add (up to the largest budget).
     """
     input:
-        workspace=f"{POL}/workspace.json",
+        workspace=f"{POLICY_DIR}/workspace.json",
         code=imports("robustness_targets"),
     output:
         **{f"uniform_{n}": f for n, f in UNIFORM_TARGETS.items()},
-        extension=f"{ROB}/targets_extension.parquet",
+        extension=f"{ROBUSTNESS_DIR}/targets_extension.parquet",
     log:
         "logs/robustness/targets.log",
     conda:
@@ -45,10 +45,10 @@ rule robustness_targets:
             GENERATIONS,
             max([BUDGET_GENERATIONS[v] for v in LONGER], default=GENERATIONS),
         ),
-        per_generation=PBUDGET["targets_per_candidate"],
-        seeds=RCFG["target_seeds"],
-        arc_deg=PCFG["arc_deg"],
-        jitter_m=PCFG["target_jitter_m"],
+        per_generation=POLICY_BUDGET["targets_per_candidate"],
+        seeds=ROBUSTNESS_CONFIG["target_seeds"],
+        arc_deg=POLICY_CONFIG["arc_deg"],
+        jitter_m=POLICY_CONFIG["target_jitter_m"],
     script:
         "../workflow_scripts/robustness_targets.py"
 
@@ -60,8 +60,8 @@ use rule policy_search as robustness_search_uniform with:
         selection=UNIFORM_TARGETS["selection"],
         code=imports("policy_search"),
     output:
-        run=f"{ROB}/uniform/runs/{{arch}}_seed{{seed}}.json",
-        state=f"{ROB}/uniform/runs/{{arch}}_seed{{seed}}.cma.pkl",
+        run=f"{ROBUSTNESS_DIR}/uniform/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{ROBUSTNESS_DIR}/uniform/runs/{{arch}}_seed{{seed}}.cma.pkl",
     log:
         "logs/robustness/search_uniform_{arch}_seed{seed}.log",
     benchmark:
@@ -74,14 +74,14 @@ use rule policy_search as robustness_search_uniform with:
 use rule policy_search as robustness_search_longer with:
     input:
         **SIMULATOR,
-        resume=f"{POL}/runs/{{arch}}_seed{{seed}}.json",
-        resume_state=f"{POL}/runs/{{arch}}_seed{{seed}}.cma.pkl",
-        training=f"{ROB}/targets_extension.parquet",
-        selection=f"{POL}/targets_selection.parquet",
+        resume=f"{POLICY_DIR}/runs/{{arch}}_seed{{seed}}.json",
+        resume_state=f"{POLICY_DIR}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+        training=f"{ROBUSTNESS_DIR}/targets_extension.parquet",
+        selection=f"{POLICY_DIR}/targets_selection.parquet",
         code=imports("policy_search"),
     output:
-        run=f"{ROB}/{{longer}}/runs/{{arch}}_seed{{seed}}.json",
-        state=f"{ROB}/{{longer}}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+        run=f"{ROBUSTNESS_DIR}/{{longer}}/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{ROBUSTNESS_DIR}/{{longer}}/runs/{{arch}}_seed{{seed}}.cma.pkl",
     log:
         "logs/robustness/search_{longer}_{arch}_seed{seed}.log",
     benchmark:
@@ -100,17 +100,17 @@ rule robustness_fixed:
         evaluation=UNIFORM_TARGETS["evaluation"],
         code=imports("policy_fixed"),
     output:
-        eval=f"{ROB}/uniform/eval/fixed.parquet",
-        summary=f"{ROB}/uniform/fixed.json",
+        eval=f"{ROBUSTNESS_DIR}/uniform/eval/fixed.parquet",
+        summary=f"{ROBUSTNESS_DIR}/uniform/fixed.json",
     log:
         "logs/robustness/fixed.log",
     conda:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         seed=config["seed"],
     script:
         "../workflow_scripts/policy_fixed.py"
@@ -122,27 +122,27 @@ rule robustness_evaluate:
         **SIMULATOR,
         # a smaller budget's run is the benchmark's, stopped there
         run=lambda wc: (
-            f"{POL}/runs/{wc.arch}_seed{wc.seed}.json"
+            f"{POLICY_DIR}/runs/{wc.arch}_seed{wc.seed}.json"
             if wc.variant in SHORTER
-            else f"{ROB}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
+            else f"{ROBUSTNESS_DIR}/{wc.variant}/runs/{wc.arch}_seed{wc.seed}.json"
         ),
         evaluation=lambda wc: (
             UNIFORM_TARGETS["evaluation"]
             if wc.variant == "uniform"
-            else f"{POL}/targets_evaluation.parquet"
+            else f"{POLICY_DIR}/targets_evaluation.parquet"
         ),
         code=imports("policy_evaluate"),
     output:
-        f"{ROB}/{{variant}}/eval/{{arch}}_seed{{seed}}.parquet",
+        f"{ROBUSTNESS_DIR}/{{variant}}/eval/{{arch}}_seed{{seed}}.parquet",
     log:
         "logs/robustness/evaluate_{variant}_{arch}_seed{seed}.log",
     conda:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         generations=lambda wc: (
             BUDGET_GENERATIONS[wc.variant] if wc.variant in SHORTER else None
         ),
@@ -155,36 +155,39 @@ rule robustness_summary:
     ranking of the four architectures and whether it is the benchmark's."""
     input:
         benchmark_runs=POLICY_RUNS,
-        benchmark_evals=POLICY_EVALS,
-        benchmark_fixed=f"{POL}/eval/fixed.parquet",
-        uniform_runs=[f"{ROB}/uniform/runs/{a}_seed{s}.json" for a, s in POLICY_RUNS_OF],
-        uniform_fixed=f"{ROB}/uniform/eval/fixed.parquet",
+        benchmark_evals=POLICY_EVALUATIONS,
+        benchmark_fixed=f"{POLICY_DIR}/eval/fixed.parquet",
+        uniform_runs=[
+            f"{ROBUSTNESS_DIR}/uniform/runs/{a}_seed{s}.json"
+            for a, s in POLICY_RUNS_OF
+        ],
+        uniform_fixed=f"{ROBUSTNESS_DIR}/uniform/eval/fixed.parquet",
         longer_runs=[
-            f"{ROB}/{v}/runs/{a}_seed{s}.json"
+            f"{ROBUSTNESS_DIR}/{v}/runs/{a}_seed{s}.json"
             for v in LONGER
             for a, s in POLICY_RUNS_OF
         ],
         evals=[
-            f"{ROB}/{v}/eval/{a}_seed{s}.parquet"
-            for v in ROB_VARIANTS
+            f"{ROBUSTNESS_DIR}/{v}/eval/{a}_seed{s}.parquet"
+            for v in ROBUSTNESS_VARIANTS
             for a, s in POLICY_RUNS_OF
         ],
         code=imports("robustness_summary"),
     output:
-        f"{ROB}/summary.json",
+        f"{ROBUSTNESS_DIR}/summary.json",
     log:
         "logs/robustness/summary.log",
     conda:
         "../envs/esnap.yaml"
     params:
-        variants=ROB_VARIANTS,
+        variants=ROBUSTNESS_VARIANTS,
         budget_generations=BUDGET_GENERATIONS,
         generations=GENERATIONS,
-        tolerances=PCFG["tolerances_m"],
-        d_f=PCFG["reward"]["d_f_m"],
-        v_min=PCFG["reward"]["v_min_sim_mps"],
+        tolerances=POLICY_CONFIG["tolerances_m"],
+        d_f=POLICY_CONFIG["reward"]["d_f_m"],
+        v_min=POLICY_CONFIG["reward"]["v_min_sim_mps"],
         evaluations_per_generation=evaluations(
-            1, PBUDGET["popsize"], PBUDGET["targets_per_candidate"]
+            1, POLICY_BUDGET["popsize"], POLICY_BUDGET["targets_per_candidate"]
         ),
         protocol=protocol_params("primitive"),
     script:
@@ -194,7 +197,7 @@ rule robustness_summary:
 rule fig_robustness:
     """Fig. S1: final held-out reward and attachment at 5 cm per architecture, benchmark and variants."""
     input:
-        summary=f"{ROB}/summary.json",
+        summary=f"{ROBUSTNESS_DIR}/summary.json",
         code=imports("fig_robustness"),
     output:
         pdf="results/figs/figS1_robustness.pdf",
@@ -215,11 +218,11 @@ rule fig_robustness:
 rule table_robustness_claims:
     """The architecture result on each variant beside the paper's benchmark values."""
     input:
-        summary=f"{ROB}/summary.json",
+        summary=f"{ROBUSTNESS_DIR}/summary.json",
         reference="reference/paper_values.yaml",
         code=imports("robustness_claims"),
     output:
-        f"{ROB}/variants.csv",
+        f"{ROBUSTNESS_DIR}/variants.csv",
     log:
         "logs/robustness/claims.log",
     conda:

@@ -7,50 +7,54 @@
 # directly, the policies' rewards against that optimum, the optimum regressed on the target features
 # per section, and each architecture fitted to it by least squares (results/landscape/).
 
-SENS = "results/sensitivity"
-SCFG = PCFG["sensitivity"]
-BENCH_START = f"{PCFG['start']['init']}-{PCFG['start']['sigma0']:g}"
-SENS_RUNS_OF = [
+SENSITIVITY_DIR = "results/sensitivity"
+SENSITIVITY_CONFIG = POLICY_CONFIG["sensitivity"]
+BENCHMARK_START = (
+    f"{POLICY_CONFIG['start']['init']}-{POLICY_CONFIG['start']['sigma0']:g}"
+)
+SENSITIVITY_RUNS_OF = [
     (start, arch, seed)
-    for start, s in SCFG.items()
+    for start, s in SENSITIVITY_CONFIG.items()
     for arch in s["archs"]
-    for seed in range(PBUDGET["seeds"][arch])
+    for seed in range(POLICY_BUDGET["seeds"][arch])
 ]
-LAND = "results/landscape"
-LBUDGET = BUDGET["landscape"]
+LANDSCAPE_DIR = "results/landscape"
+LANDSCAPE_BUDGET = BUDGET["landscape"]
 
 
 wildcard_constraints:
-    start="|".join(s.replace(".", r"\.") for s in SCFG),
+    start="|".join(s.replace(".", r"\.") for s in SENSITIVITY_CONFIG),
 
 
 use rule policy_search as sensitivity_search with:
     input:
         **SIMULATOR,
-        training=f"{POL}/targets_training.parquet",
-        selection=f"{POL}/targets_selection.parquet",
+        training=f"{POLICY_DIR}/targets_training.parquet",
+        selection=f"{POLICY_DIR}/targets_selection.parquet",
         code=imports("policy_search"),
     output:
-        run=f"{SENS}/{{start}}/runs/{{arch}}_seed{{seed}}.json",
-        state=f"{SENS}/{{start}}/runs/{{arch}}_seed{{seed}}.cma.pkl",
+        run=f"{SENSITIVITY_DIR}/{{start}}/runs/{{arch}}_seed{{seed}}.json",
+        state=f"{SENSITIVITY_DIR}/{{start}}/runs/{{arch}}_seed{{seed}}.cma.pkl",
     log:
         "logs/sensitivity/search_{start}_{arch}_seed{seed}.log",
     benchmark:
         "benchmarks/sensitivity/search_{start}_{arch}_seed{seed}.tsv"
     priority: 0
     params:
-        start=lambda wc: {k: v for k, v in SCFG[wc.start].items() if k != "archs"},
+        start=lambda wc: {
+            k: v for k, v in SENSITIVITY_CONFIG[wc.start].items() if k != "archs"
+        },
         snapshots=[],
 
 
 use rule policy_evaluate as sensitivity_evaluate with:
     input:
         **SIMULATOR,
-        run=f"{SENS}/{{start}}/runs/{{arch}}_seed{{seed}}.json",
-        evaluation=f"{POL}/targets_evaluation.parquet",
+        run=f"{SENSITIVITY_DIR}/{{start}}/runs/{{arch}}_seed{{seed}}.json",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
         code=imports("policy_evaluate"),
     output:
-        f"{SENS}/{{start}}/eval/{{arch}}_seed{{seed}}.parquet",
+        f"{SENSITIVITY_DIR}/{{start}}/eval/{{arch}}_seed{{seed}}.parquet",
     log:
         "logs/sensitivity/evaluate_{start}_{arch}_seed{seed}.log",
     priority: 0
@@ -61,28 +65,34 @@ rule sensitivity_summary:
     selected policy and of the first candidates of every start."""
     input:
         benchmark_runs=POLICY_RUNS,
-        benchmark_evals=POLICY_EVALS,
-        fixed=f"{POL}/eval/fixed.parquet",
-        runs=[f"{SENS}/{s}/runs/{a}_seed{i}.json" for s, a, i in SENS_RUNS_OF],
-        evals=[f"{SENS}/{s}/eval/{a}_seed{i}.parquet" for s, a, i in SENS_RUNS_OF],
-        evaluation=f"{POL}/targets_evaluation.parquet",
-        workspace=f"{POL}/workspace.json",
+        benchmark_evals=POLICY_EVALUATIONS,
+        fixed=f"{POLICY_DIR}/eval/fixed.parquet",
+        runs=[
+            f"{SENSITIVITY_DIR}/{s}/runs/{a}_seed{i}.json"
+            for s, a, i in SENSITIVITY_RUNS_OF
+        ],
+        evals=[
+            f"{SENSITIVITY_DIR}/{s}/eval/{a}_seed{i}.parquet"
+            for s, a, i in SENSITIVITY_RUNS_OF
+        ],
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
+        workspace=f"{POLICY_DIR}/workspace.json",
         code=imports("sensitivity_summary"),
     output:
-        f"{SENS}/summary.json",
+        f"{SENSITIVITY_DIR}/summary.json",
     log:
         "logs/sensitivity/summary.log",
     conda:
         "../envs/esnap.yaml"
     params:
-        starts={BENCH_START: PCFG["start"], **SCFG},
-        tolerances=PCFG["tolerances_m"],
-        d_f=PCFG["reward"]["d_f_m"],
-        v_min=PCFG["reward"]["v_min_sim_mps"],
+        starts={BENCHMARK_START: POLICY_CONFIG["start"], **SENSITIVITY_CONFIG},
+        tolerances=POLICY_CONFIG["tolerances_m"],
+        d_f=POLICY_CONFIG["reward"]["d_f_m"],
+        v_min=POLICY_CONFIG["reward"]["v_min_sim_mps"],
         budget_evaluations=evaluations(
-            PBUDGET["generations"],
-            PBUDGET["popsize"],
-            PBUDGET["targets_per_candidate"],
+            POLICY_BUDGET["generations"],
+            POLICY_BUDGET["popsize"],
+            POLICY_BUDGET["targets_per_candidate"],
         ),
         protocol=protocol_params("primitive"),
         seed=config["seed"],
@@ -93,7 +103,7 @@ rule sensitivity_summary:
 rule fig_sensitivity:
     """Fig. S2: final held-out reward per architecture and start, and how tied the shared sections are."""
     input:
-        summary=f"{SENS}/summary.json",
+        summary=f"{SENSITIVITY_DIR}/summary.json",
         code=imports("fig_sensitivity"),
     output:
         pdf="results/figs/figS2_sensitivity.pdf",
@@ -115,12 +125,12 @@ rule fig_sensitivity:
 rule table_sensitivity:
     """Per start: rewards, the reading, the budget share to the centralised level, the slope probe."""
     input:
-        summary=f"{SENS}/summary.json",
+        summary=f"{SENSITIVITY_DIR}/summary.json",
         code=imports("sensitivity_table"),
     output:
-        csv=f"{SENS}/starts.csv",
+        csv=f"{SENSITIVITY_DIR}/starts.csv",
         html=report(
-            f"{SENS}/starts.html",
+            f"{SENSITIVITY_DIR}/starts.html",
             caption="../report/sensitivity_starts.rst",
             category="Starting point",
         ),
@@ -138,10 +148,10 @@ rule landscape_optimum:
     """
     input:
         **SIMULATOR,
-        evaluation=f"{POL}/targets_evaluation.parquet",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
         code=imports("landscape_optimum"),
     output:
-        f"{LAND}/optimum.parquet",
+        f"{LANDSCAPE_DIR}/optimum.parquet",
     log:
         "logs/landscape/optimum.log",
     benchmark:
@@ -150,11 +160,11 @@ rule landscape_optimum:
         "../envs/esnap.yaml"
     threads: 2
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
-        size=LBUDGET,
-        method=PCFG["landscape"],
+        **SIMULATOR_PARAMS,
+        size=LANDSCAPE_BUDGET,
+        method=POLICY_CONFIG["landscape"],
     script:
         "../workflow_scripts/landscape_optimum.py"
 
@@ -165,16 +175,16 @@ rule landscape_summary:
     """
     input:
         **SIMULATOR,
-        optimum=f"{LAND}/optimum.parquet",
-        evaluation=f"{POL}/targets_evaluation.parquet",
-        benchmark_evals=POLICY_EVALS,
-        fixed=f"{POL}/eval/fixed.parquet",
+        optimum=f"{LANDSCAPE_DIR}/optimum.parquet",
+        evaluation=f"{POLICY_DIR}/targets_evaluation.parquet",
+        benchmark_evals=POLICY_EVALUATIONS,
+        fixed=f"{POLICY_DIR}/eval/fixed.parquet",
         code=imports("landscape_summary"),
     output:
-        summary=f"{LAND}/summary.json",
-        table=f"{LAND}/architectures.csv",
+        summary=f"{LANDSCAPE_DIR}/summary.json",
+        table=f"{LANDSCAPE_DIR}/architectures.csv",
         html=report(
-            f"{LAND}/architectures.html",
+            f"{LANDSCAPE_DIR}/architectures.html",
             caption="../report/landscape_architectures.rst",
             category="Landscape",
         ),
@@ -186,9 +196,9 @@ rule landscape_summary:
         "../envs/esnap.yaml"
     threads: 1
     resources:
-        **SIM_RESOURCES,
+        **SIMULATOR_RESOURCES,
     params:
-        **SIM_PARAMS,
+        **SIMULATOR_PARAMS,
         seed=config["seed"],
     script:
         "../workflow_scripts/landscape_summary.py"

@@ -15,6 +15,16 @@ from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 os.environ.setdefault("ESNAP_REALTIME", "0")
 
 
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(config, items):
+    """`make test` runs on two workers (pytest-xdist, `--dist loadgroup`): a module's tests share a
+    worker, so its module fixtures are built once, and so do all the tests that read the session's
+    smoke run (conftest.smoke_run), whatever their module, so the run is built once."""
+    for item in items:
+        group = "smoke_run" if "smoke_run" in item.fixturenames else item.module.__name__
+        item.add_marker(pytest.mark.xdist_group(group))
+
+
 def _synthetic_frames(n_groups=6, n=140, seed=0):
     """Servos lag their step goals (first order); bodies and axis follow the servo positions
     through a fixed linear map with a little sway: learnable, but not constant velocity."""

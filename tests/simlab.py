@@ -15,7 +15,7 @@ import yaml
 from embodied_snap.io import read_parquet
 from embodied_snap.lab import acquire as LA
 from embodied_snap.lab import plan as LP
-from embodied_snap.twin.labrig import LabRig
+from embodied_snap.twin.labrig import LabRig, LabRigSetup
 
 from labexport import write_motive_csv
 from paper_protocol import CONFIG as CONFIG_PATH
@@ -74,7 +74,9 @@ class SimLab:
         group = dict({k: entry[k] for k in ("group_id", "evidence_set", "category", "session", "program")},
                      target_offset_m=entry.get("target", {}).get("offset_m"), cue_s=entry.get("cue_s"))
         env = self.doc["envelope"]
-        r = LabRig(group, SEED, DT, HOLD, PROTO, env["eeprom_min"], env["eeprom_max"], self.faults.get(gid))
+        setup = LabRigSetup(seed=SEED, dt=DT, hold=HOLD, proto=PROTO, eeprom_min=env["eeprom_min"],
+                            eeprom_max=env["eeprom_max"])
+        r = LabRig(group, setup, faults=self.faults.get(gid))
         self.ran.append(gid)
         with r as port:
             try:
@@ -90,4 +92,5 @@ class SimLab:
                                      take_name=gid)
 
     def acquire(self, **kw) -> dict:
-        return LA.acquire(self.plan, None, self.out, yes=False, ask=self.ask, say=self.say, rig=self.rig, **kw)
+        return LA.acquire(self.plan, None, self.out, options=LA.AcquireOptions(yes=False, **kw), ask=self.ask,
+                          say=self.say, rig=self.rig)

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import pytest
 import yaml
 
 from embodied_snap.acquisition import draws as D
@@ -31,12 +32,16 @@ def smoke_groups():
     return twin_plan(CONFIG["budgets"]["smoke"]["groups"], CONFIG["sessions"])
 
 
-def test_smoke_acquisition_is_byte_identical_to_the_rig_before_the_move(tmp_path):
-    acquire_groups(smoke_groups(), tmp_path, seed=CONFIG["seed"], proto=PROTO, dt=CONFIG["twin"]["dt"], hold=HOLD,
-                   progress=False)
-    got = {str(p.relative_to(tmp_path)): hashlib.sha256(p.read_bytes()).hexdigest()
-           for p in sorted(tmp_path.rglob("*")) if p.is_file()}
-    want = json.loads(BEFORE.read_text())
+def sha256s(raw: Path, under: str = "groups") -> dict[str, str]:
+    return {str(p.relative_to(raw)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted((raw / under).rglob("*")) if p.is_file()}
+
+
+@pytest.mark.slow
+def test_smoke_acquisition_is_byte_identical_to_the_rig_before_the_move(smoke_run):
+    """Every group the workflow's acquisition jobs recorded in the session's smoke run (conftest),
+    byte for byte as the rig before the move wrote it."""
+    got, want = sha256s(smoke_run / "raw_data"), json.loads(BEFORE.read_text())
     assert sorted(got) == sorted(want)
     assert {k for k in want if got[k] != want[k]} == set()
 
@@ -51,6 +56,9 @@ def test_a_dynamics_group_gives_the_paper_s_windows_per_group(tmp_path):
     row = next(r for r in smoke_groups().to_dict("records") if r["category"] == "sealed")
     acquire_groups(pd.DataFrame([row]), tmp_path, seed=CONFIG["seed"], proto=PROTO, dt=CONFIG["twin"]["dt"],
                    hold=HOLD, progress=False)
+    # recorded in process, alone, it is the group the rig before the move wrote, byte for byte
+    want = json.loads(BEFORE.read_text())
+    assert sha256s(tmp_path) == {k: v for k, v in want.items() if k.startswith(f"groups/{row['group_id']}/")}
     frames = resample_group(tmp_path, row["group_id"], PROTO.sampling.hz, PROTO.sampling.max_gap_s)
     n = len(make_windows(frames.assign(group_id=row["group_id"]), PROTO.windows)["anchors"])
     assert abs(n - PROTO.windows.per_dynamics_group) <= 1, n

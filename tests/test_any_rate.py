@@ -16,6 +16,7 @@ import pytest
 
 from embodied_snap import rawschema as RS
 from embodied_snap.characterize import mocap as CM
+from embodied_snap.io import write_parquet
 from embodied_snap.rawformat import (
     BODIES,
     MOCAP_HZ,
@@ -26,7 +27,6 @@ from embodied_snap.rawformat import (
     mocap_columns,
     write_group,
     write_index,
-    write_parquet,
 )
 from embodied_snap.resample import STATE_COLUMNS, _track, resample_group
 from embodied_snap.validate import RecordingError, validate_group, validate_index, validate_shard

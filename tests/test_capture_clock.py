@@ -16,8 +16,10 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter
 
-from embodied_snap.capture.clock import check_drift, estimate_offset, measure_drift
+from embodied_snap.capture.clock import ClockFitOptions, check_drift, estimate_offset, measure_drift
 from embodied_snap.capture.errors import CaptureError
+
+WITHIN_1S = ClockFitOptions(max_shift_s=1.0)  # shifts searched: 0 +- 1 s, every other setting the default
 
 SHIFT = 0.137  # t_servo + SHIFT is the mocap time of a servo sample
 TAU = 0.05  # the joint's time constant, s
@@ -59,7 +61,8 @@ def take(seed, rate, duration=120.0, drift=0.0, noise=0.0, commanded=False):
 @pytest.mark.parametrize("rate", [120, 240, 360])
 def test_offset_within_one_frame(rate):
     # measured: errors of 0.005-0.16 ms at every rate, against frames of 8.3, 4.2 and 2.8 ms
-    fit = estimate_offset(*take(1, rate), max_shift_s=1.0, motion_name="S1 bend rate", command_name="S1 tick rate")
+    options = ClockFitOptions(max_shift_s=1.0, motion_name="S1 bend rate", command_name="S1 tick rate")
+    fit = estimate_offset(*take(1, rate), options)
     assert abs(fit.offset_s - SHIFT) < 1 / rate
     assert fit.peak_correlation > 0.99 and fit.second_peak_ratio < 0.5
     assert fit.dt_s == pytest.approx(1 / rate)  # the finer of the two rates
@@ -71,14 +74,14 @@ def test_offset_within_one_frame(rate):
 
 def test_a_prior_guess_moves_the_window():
     t_mocap, motion, t_servo, command = take(2, 240)
-    fit = estimate_offset(t_mocap, motion, t_servo - 1000.0, command, max_shift_s=1.0, guess_s=1000.5)
+    fit = estimate_offset(t_mocap, motion, t_servo - 1000.0, command, ClockFitOptions(max_shift_s=1.0, guess_s=1000.5))
     assert abs(fit.offset_s - (SHIFT + 1000.0)) < 1 / 240
 
 
 def test_noise_keeps_the_offset_and_widens_the_uncertainty():
     rate = 120
-    quiet = estimate_offset(*take(3, rate, noise=0.2), max_shift_s=1.0)
-    noisy = estimate_offset(*take(3, rate, noise=1.0), max_shift_s=1.0)
+    quiet = estimate_offset(*take(3, rate, noise=0.2), WITHIN_1S)
+    noisy = estimate_offset(*take(3, rate, noise=1.0), WITHIN_1S)
     # noise std 1.0 x the signal's: r drops to about 1 / sqrt(2), still a clear peak
     assert abs(noisy.offset_s - SHIFT) < 1 / rate
     assert noisy.peak_correlation < quiet.peak_correlation
@@ -91,7 +94,7 @@ def test_uncertainty_is_the_size_of_the_error():
     # that is merely large (measured: 62 % and 92 %, rms error 0.86 ms, mean uncertainty 0.84 ms)
     errors, u = [], []
     for seed in range(40):
-        fit = estimate_offset(*take(seed, 240, duration=60, noise=1.0), max_shift_s=1.0)
+        fit = estimate_offset(*take(seed, 240, duration=60, noise=1.0), WITHIN_1S)
         errors.append(abs(fit.offset_s - SHIFT))
         u.append(fit.uncertainty_s)
     errors, u = np.array(errors), np.array(u)
@@ -107,8 +110,8 @@ def test_nan_gaps_in_the_mocap():
     for s in starts:
         gappy[(t_mocap >= s) & (t_mocap < s + 0.5)] = np.nan
     gappy[np.random.default_rng(0).random(len(gappy)) < 0.01] = np.nan  # and 1 % single dropped frames
-    whole = estimate_offset(t_mocap, motion, t_servo, command, max_shift_s=1.0)
-    fit = estimate_offset(t_mocap, gappy, t_servo, command, max_shift_s=1.0)
+    whole = estimate_offset(t_mocap, motion, t_servo, command, WITHIN_1S)
+    fit = estimate_offset(t_mocap, gappy, t_servo, command, WITHIN_1S)
     assert abs(fit.offset_s - SHIFT) < 1 / rate
     # the long gaps are not interpolated across: about 0.5 s of grid samples each go missing
     assert fit.n_samples <= whole.n_samples - len(starts) * 0.45 * rate
@@ -117,7 +120,7 @@ def test_nan_gaps_in_the_mocap():
 def test_a_commanded_signal_carries_the_response_lag():
     # goal ticks lead the joint by its response: the fit absorbs a delay between 0 and TAU (measured
     # 33 ms here), which is why the module asks for what the servo measured
-    fit = estimate_offset(*take(1, 240, commanded=True), max_shift_s=1.0)
+    fit = estimate_offset(*take(1, 240, commanded=True), WITHIN_1S)
     assert SHIFT + 0.01 < fit.offset_s < SHIFT + TAU
 
 
@@ -127,17 +130,17 @@ def test_a_commanded_signal_carries_the_response_lag():
 def test_drift_measured():
     # 300 s take, windows of 100 s whose centres are 200 s apart; each window's offset is good to
     # 1 ms (measured 0.3 ms at most), so the drift is good to 2 ms / 200 s = 10 ppm
-    d = measure_drift(*take(5, 240, duration=300, drift=50e-6), max_shift_s=1.0)
+    d = measure_drift(*take(5, 240, duration=300, drift=50e-6), WITHIN_1S)
     assert abs(d.ppm - 50) < 10
     assert d.t_last - d.t_first == pytest.approx(200, abs=1)
     check_drift(d.rate, limit=100e-6)
-    flat = measure_drift(*take(5, 240, duration=300), max_shift_s=1.0)
+    flat = measure_drift(*take(5, 240, duration=300), WITHIN_1S)
     assert abs(flat.ppm) < 10
     assert json.loads(json.dumps(d.to_meta()))["first"]["method"] == d.first.method
 
 
 def test_drift_past_the_limit_refused():
-    d = measure_drift(*take(6, 120, duration=300, drift=300e-6), max_shift_s=1.0)
+    d = measure_drift(*take(6, 120, duration=300, drift=300e-6), WITHIN_1S)
     with pytest.raises(CaptureError, match=r"clock drift -?[\d.]+ ppm \(rule: clock drift <= 100 ppm\)$"):
         check_drift(d.rate, limit=100e-6, source="servo.csv")
     with pytest.raises(CaptureError, match=r"\(rule: clock drift <= "):
@@ -148,9 +151,9 @@ def test_drift_past_the_limit_refused():
 # --- refusals ------------------------------------------------------------------------------------
 
 
-def refusal(*args, **kw):
+def refusal(*signals, source, **options):
     with pytest.raises(CaptureError) as e:
-        estimate_offset(*args, **kw)
+        estimate_offset(*signals, ClockFitOptions(**options), source=source)
     message = str(e.value)
     assert "\n" not in message and message.startswith("servo.csv: ")
     return message

@@ -12,7 +12,8 @@ import pytest
 
 from embodied_snap import rawschema as RS
 from embodied_snap.characterize.load import group as load_group
-from embodied_snap.rawformat import BODIES, group_paths, write_parquet
+from embodied_snap.io import write_parquet
+from embodied_snap.rawformat import BODIES, group_paths
 from embodied_snap.resample import resample_group
 from embodied_snap.validate import RecordingError, validate_group
 

@@ -213,9 +213,9 @@ def test_config_is_snakemakes(cwd):
     overrides, merged as Snakemake merges them; the schema fills nothing in (it has no defaults)."""
     from embodied_snap import runconfig
 
-    (cwd / "more.yaml").write_text("resample: {hz: 25}\n")
+    (cwd / "more.yaml").write_text("resample: {max_gap_s: 0.2}\n")
     cfg = runconfig.load("more.yaml", ["budget=smoke", "raw_data={source: rig}"])
-    assert cfg["budget"] == "smoke" and cfg["resample"]["hz"] == 25 and cfg["raw_data"]["source"] == "rig"
+    assert cfg["budget"] == "smoke" and cfg["resample"]["max_gap_s"] == 0.2 and cfg["raw_data"]["source"] == "rig"
     assert cfg["raw_data"]["dir"] == "raw_data"  # config.yaml's, kept: an override updates a section
     (cwd / "config.yaml").unlink()  # no workflow config: the file alone, and it lacks keys
     with pytest.raises(runconfig.ConfigError) as e:

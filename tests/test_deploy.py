@@ -442,8 +442,8 @@ def test_block_stays_on_its_support_until_pulled():
     from embodied_snap.twin.deployment import block_at
 
     target = block_at([0.3, -0.6, 0.2], [-0.5, 0.3, -0.8])
-    arm = sim.Arm(dict(M.NOMINAL, block_mass=TR.BLOCK["mass_kg"]), 0.001, TR.LATCH, target=target, seal=TR.SEAL,
-                  block=TR.BLOCK)
+    arm = sim.Arm(dict(M.NOMINAL, block_mass=TR.BLOCK["mass_kg"]), 0.001, TR.LATCH,
+                  scene=sim.Scene(target=target, seal=TR.SEAL, block=TR.BLOCK))
     for _ in range(500):
         arm.step(np.zeros(9))
     tr = arm.trial()
@@ -497,10 +497,10 @@ def test_lab_trials_are_indexed_by_esnap_deploy_index(man_path, tmp_path):
     import pandas as pd
 
     from embodied_snap.cli import main
-    from embodied_snap.twin.deployment import run_trial
+    from embodied_snap.twin.deployment import DeploymentSetup, run_trial
 
     raw = tmp_path / "deployment"
-    row = run_trial(man_path, 2, 1, raw, seed=1, n_sessions=12, dt=0.001, speed_mps=1.0)
+    row = run_trial(man_path, 2, 1, DeploymentSetup(raw=raw, seed=1, n_sessions=12, dt=0.001, speed_mps=1.0))
     assert "cause" not in row, row
     gid = row["group_id"]
     shutil.copytree(raw / "groups" / gid, raw / "groups" / "dep_0090")

@@ -28,7 +28,7 @@ from embodied_snap.deploy import manifest as MF
 from embodied_snap.io import read_parquet
 from embodied_snap.lab import acquire as LA
 from embodied_snap.lab import plan as LP
-from embodied_snap.twin.labrig import LabRig
+from embodied_snap.twin.labrig import LabRig, LabRigSetup
 
 from paper_protocol import HOLD, PROTO
 
@@ -297,7 +297,9 @@ def test_an_acquisition_group_ramps_from_where_the_servos_rest(plan_doc, tmp_pat
     @contextmanager
     def rig(e):
         group = dict({k: e[k] for k in ("group_id", "evidence_set", "category", "session", "program")})
-        r = LabRig(group, SEED, DT, HOLD, PROTO, env["eeprom_min"], env["eeprom_max"], rest=-400)
+        setup = LabRigSetup(seed=SEED, dt=DT, hold=HOLD, proto=PROTO, eeprom_min=env["eeprom_min"],
+                            eeprom_max=env["eeprom_max"])
+        r = LabRig(group, setup, rest=-400)
         with r as port:
             yield port
             t_end = read_parquet(tmp_path / "out/groups" / e["group_id"] / "servo.parquet")["t"].iloc[-1]
@@ -309,8 +311,8 @@ def test_an_acquisition_group_ramps_from_where_the_servos_rest(plan_doc, tmp_pat
         asked.append(q)
         return "" if len(asked) == 1 else "q"
 
-    LA.acquire(path, None, tmp_path / "out", start=entry["group_id"], ask=ask, say=lambda s: None, rig=rig,
-               session=entry["session"], evidence_set="servo_calibration")
+    options = LA.AcquireOptions(start=entry["group_id"], session=entry["session"], evidence_set="servo_calibration")
+    LA.acquire(path, None, tmp_path / "out", options=options, ask=ask, say=lambda s: None, rig=rig)
     assert LA.recorded(tmp_path / "out", entry["group_id"]) and asked[0].startswith("Enter: run it")
     d = tmp_path / "out/groups" / entry["group_id"]
     goals, _ = LP.group_goals(plan_doc, entry)

@@ -21,6 +21,8 @@ from paper_protocol import PROTO
 torch.set_num_threads(1)
 HISTORY, LOOKAHEAD, HORIZON = 20, 5, 25  # the paper's windows (config `windows`)
 DT = 0.02  # 50 Hz (config resample.hz)
+# a tiny fit: 4 epochs of 256 windows, scored on 128
+TINY = T.TrainSettings(epochs=4, windows_per_epoch=256, val_windows=128, batch_size=64, lr=3e-3, patience=10)
 
 
 @pytest.fixture(scope="module")
@@ -171,8 +173,7 @@ def test_persistence_and_eligible(windows):
 @pytest.fixture(scope="module")
 def trained(windows):
     tr, va = windows
-    model, curve = T.train(tr, va, seed=0, epochs=4, windows_per_epoch=256, val_windows=128,
-                           batch_size=64, lr=3e-3, patience=10, log=lambda r: None)
+    model, curve = T.train(tr, va, seed=0, settings=TINY, log=lambda r: None)
     return model, curve
 
 
@@ -195,8 +196,7 @@ def test_training_is_deterministic(windows, trained, monkeypatch):
     tr, va = windows
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)
     lines = []
-    m2, _ = T.train(tr, va, seed=0, epochs=4, windows_per_epoch=256, val_windows=128,
-                    batch_size=64, lr=3e-3, patience=10, device="cuda", log=lines.append)
+    m2, _ = T.train(tr, va, seed=0, settings=dataclasses.replace(TINY, device="cuda"), log=lines.append)
     for a, b in zip(trained[0].state_dict().values(), m2.state_dict().values()):
         torch.testing.assert_close(a, b, atol=0, rtol=0)
     said = [x for x in lines if isinstance(x, str)]
@@ -204,14 +204,14 @@ def test_training_is_deterministic(windows, trained, monkeypatch):
     assert Ensemble(models=[m2], device="cuda").device == "cpu"
 
 
+@pytest.mark.slow
 def test_seeds_side_by_side_are_each_the_seed_trained_alone(windows, trained):
     """config dynamics.seeds_in_one_job: the seeds trained at once, a forked process each, give
     every seed the model and curve train() gives it alone (the curve's clock aside), in seed order."""
     tr, va = windows
-    kw = dict(epochs=4, windows_per_epoch=256, val_windows=128, batch_size=64, lr=3e-3, patience=10)
-    alone = T.train(tr, va, seed=1, log=lambda r: None, **kw)
+    alone = T.train(tr, va, seed=1, settings=TINY, log=lambda r: None)
     rows = []
-    fits = T.train_seeds(tr, va, [1, 0], threads=1, log=lambda s, r: rows.append(s), **kw)
+    fits = T.train_seeds(tr, va, [1, 0], TINY, threads=1, log=lambda s, r: rows.append(s))
     for (m, c), (m0, c0) in zip(fits, [alone, trained]):
         for a, b in zip(m.state_dict().values(), m0.state_dict().values()):
             torch.testing.assert_close(a, b, atol=0, rtol=0)
@@ -219,7 +219,7 @@ def test_seeds_side_by_side_are_each_the_seed_trained_alone(windows, trained):
                [{k: v for k, v in r.items() if k != "seconds"} for r in c0]
     assert rows == []  # forked: each seed logged in its own process
     # one seed, or a device other than the CPU: in turn, in this process, each row logged with its seed
-    (m, _), = T.train_seeds(tr, va, [1], log=lambda s, r: rows.append(s), **kw)
+    (m, _), = T.train_seeds(tr, va, [1], TINY, log=lambda s, r: rows.append(s))
     assert rows == [1] * 4
     for a, b in zip(m.state_dict().values(), alone[0].state_dict().values()):
         torch.testing.assert_close(a, b, atol=0, rtol=0)

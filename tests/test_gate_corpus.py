@@ -1,11 +1,14 @@
-"""Every kind of tests/gate_corpus.py through both `esnap validate` and the workflow, on a copy of
-a finished smoke run of the simulated rig.
+"""Every kind of tests/gate_corpus.py through `esnap validate` and the workflow's gate, on a copy of
+the session's finished smoke run of the simulated rig (conftest.smoke_run).
 
 For each kind, in both modes (the tree read as a real rig's, `raw_data={source: rig}`, and as
-the simulated rig's own): a broken one is rejected by both with the same single line (file,
-group, rule), the workflow stops before any job, and every file under results/ keeps its sha256;
-a benign one passes both. Neither opens the target of a link out of the raw directory. The raw
-tree is restored after each kind. One smoke run serves the module.
+the simulated rig's own): a broken one is rejected by `esnap validate` and by the gate exactly as
+the workflow calls it before its DAG (verdicts.workflow_gate, in process) with the same single line
+(file, group, rule); a benign one passes both. Neither opens the target of a link out of the raw
+directory. A handful of kinds (WIRED: an index, a recording, a link out, the one-recording rule, the
+sealed set, a benign one) also go through Snakemake itself, proving the wiring is that same gate:
+the workflow stops before any job with the identical line, no traceback, and every file under
+results/ keeps its sha256. The raw tree is restored after each kind.
 """
 
 from __future__ import annotations
@@ -95,23 +98,12 @@ def error_lines(text: str) -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def wf(tmp_path_factory):
-    d = tmp_path_factory.mktemp("corpus")
-    for name in COPY:
-        src = REPO / name
-        if src.is_dir():
-            shutil.copytree(src, d / name, ignore=shutil.ignore_patterns("__pycache__"))
-        else:
-            shutil.copy2(src, d / name)
-    done = os.environ.get("ESNAP_CORPUS_RUN")  # a finished run of this code to start from (minutes saved)
-    for name in ("raw_data", "results", ".snakemake", ".budgets") if done else ():
-        if (Path(done) / name).exists():
-            shutil.copytree(Path(done) / name, d / name, symlinks=True)
-    for args in (["all", "--config", "budget=smoke"], ["all", *RIG]):  # the twin records; read as a rig's
-        r = snakemake(d, *args)
-        assert r.returncode == 0, r.stderr[-3000:]
+def wf(smoke_run, tmp_path_factory):
+    """A copy of the session's smoke run (code, recordings, results, Snakemake's records)."""
+    d = tmp_path_factory.mktemp("corpus") / "run"
+    shutil.copytree(smoke_run, d, symlinks=True)
     shutil.copytree(d / "raw_data", d.parent / "pristine_raw", symlinks=True)
-    assert "Nothing to be done" in snakemake(d, "-n", "all", *RIG).stdout
+    assert "Nothing to be done" in snakemake(d, "-n", "all", "--config", "budget=smoke").stdout
     return d
 
 
@@ -135,26 +127,50 @@ def esnap_validate(wf, capsys, monkeypatch, source="rig") -> tuple[int, str, str
     return rc, out.out, out.err
 
 
+def workflow_gate(wf, monkeypatch, args) -> str | None:
+    """The error line of the gate the Snakefile runs before its DAG (rules/common.smk), in process,
+    with the config that `snakemake ... args` builds; None when it passes."""
+    from embodied_snap import runconfig
+    from embodied_snap.plan import PlanError
+    from embodied_snap.validate import RecordingError
+    from embodied_snap.verdicts import workflow_gate
+
+    monkeypatch.chdir(wf)
+    try:
+        workflow_gate(runconfig.load(entries=args[args.index("--config") + 1:]))
+    except (PlanError, RecordingError) as e:
+        return f"error: {e}"
+    return None
+
+
+# Through Snakemake as well: an index rule, a recording rule, a link out of the raw directory, the
+# rule across groups (and the simulated rig's own answer to it), the sealed set, a benign kind.
+WIRED = ["index.csv not text", "tip jumps 2 m for one frame", "meta.json linked to /etc/passwd",
+         "same take imported twice", "sealed group re-recorded", "servo.parquet linked inside the raw directory"]
+
+
 def test_corpus_size():
     assert len(CORPUS) - len(BENIGN) >= 40 and len(BENIGN) >= 5
-    assert set(TWIN) <= set(CORPUS)
+    assert set(TWIN) <= set(CORPUS) and set(WIRED) <= set(CORPUS)
 
 
 @pytest.mark.parametrize("kind", list(CORPUS))
 def test_kind(wf, raw, kind, capsys, monkeypatch, tmp_path):
     breaks, rig_answer = CORPUS[kind]
-    before = digest(wf / "results")
+    before = digest(wf / "results") if kind in WIRED else None
     breaks(raw)
     targets = outside_targets(raw)  # what a link out of raw_data points at: never to be opened
     for source, args in MODES.items():
         want = TWIN.get(kind, rig_answer) if source == "twin" else rig_answer
         with opens() as seen:
             rc, out, err = esnap_validate(wf, capsys, monkeypatch, source)
+            gate_line = workflow_gate(wf, monkeypatch, args)
         assert not opened_any(seen, targets), (source, opened_any(seen, targets))
         if want is None:
-            assert rc == 0 and not err, (source, err)
-            r = snakemake(wf, "-n", "all", *args)  # accepted: the DAG builds (the rebuild is the user's)
-            assert r.returncode == 0 and not error_lines(r.stdout + r.stderr), (source, r.stderr[-3000:])
+            assert rc == 0 and not err and gate_line is None, (source, err, gate_line)
+            if kind in WIRED:
+                r = snakemake(wf, "-n", "all", *args)  # accepted: the DAG builds (the rebuild is the user's)
+                assert r.returncode == 0 and not error_lines(r.stdout + r.stderr), (source, r.stderr[-3000:])
             continue
         # esnap validate: exactly one line, naming the file, the group and the rule
         assert rc == 1 and not out and err.count("\n") == 1, (source, err)
@@ -166,7 +182,11 @@ def test_kind(wf, raw, kind, capsys, monkeypatch, tmp_path):
             else f"raw_data/groups/{gid}/{file}".rstrip("/")
         )
         assert line.startswith(f"error: {path}: group {gid}: ") and f"(rule: {rule}" in line, (source, line)
-        # the workflow: stops while the plan is read, with the identical line, and touches nothing
+        # the workflow's gate: the identical line
+        assert gate_line == line, (source, gate_line)
+        if kind not in WIRED:
+            continue
+        # the workflow itself: stops while the plan is read, with the identical line, and touches nothing
         (tmp_path / source).mkdir()
         r, opened = watched_snakemake(wf, tmp_path / source, targets, "all", *args)
         assert r.returncode != 0, source

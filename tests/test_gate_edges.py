@@ -17,7 +17,8 @@ import pytest
 import yaml
 
 from embodied_snap import rawschema as RS
-from embodied_snap.rawformat import group_paths, write_json, write_parquet
+from embodied_snap.io import write_json, write_parquet
+from embodied_snap.rawformat import group_paths
 from embodied_snap.validate import RecordingError, validate_group
 
 from fakerig import write_fake_group

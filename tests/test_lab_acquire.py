@@ -28,6 +28,9 @@ from embodied_snap.rawformat import EVIDENCE_SETS, read_meta
 
 from labexport import lab_doc
 
+# Sessions on the virtual bus run in real time (minutes): make test, not make test-fast.
+pytestmark = pytest.mark.slow
+
 # The simulated rig's capture starts with the program, as a lab's whose servo PC triggers the take.
 # (The clock estimated from the data is measured by bench/lab_roundtrip.py: the live bus's present
 # positions can lag the physics stepped behind it on a loaded machine, and twice in 12 runs here a

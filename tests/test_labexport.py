@@ -40,7 +40,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from embodied_snap.capture.c3d import read_c3d
-from embodied_snap.capture.clock import estimate_offset
+from embodied_snap.capture.clock import ClockFitOptions, estimate_offset
 from embodied_snap.capture.errors import CaptureError
 from embodied_snap.capture.lab import load_lab
 from embodied_snap.capture.motive import read_motive_csv
@@ -298,7 +298,8 @@ def test_servo_log_is_on_the_other_clock(group, tmp_path):
     np.testing.assert_allclose(log.t.to_numpy() / (1 + DRIFT_PPM * 1e-6) + OFFSET_S, t, atol=1e-6)
 
     # the offset from the same motion on both clocks: the servos' measured speed, native vs written
-    fit = estimate_offset(*speed(t, present(servo)), *speed(log.t.to_numpy(), present(log)), 0.5)
+    fit = estimate_offset(*speed(t, present(servo)), *speed(log.t.to_numpy(), present(log)),
+                          ClockFitOptions(max_shift_s=0.5))
     assert abs(fit.offset_s - OFFSET_S) < H  # one native capture frame
     # what is left is the drift: at the log's mid-time the constant shift is offset_s - t' drift
     t_mid = log.t.to_numpy().mean()
@@ -319,8 +320,8 @@ def test_tip_snap_and_servo_release_move_by_the_offset(group, tmp_path):
     for offset, drift in ((0.0, 0.0), (OFFSET_S, DRIFT_PPM)):
         write_servo_log(servo, tmp_path / "servo.csv", offset, drift)
         log = pd.read_csv(tmp_path / "servo.csv")
-        fits.append(estimate_offset(tm[window], sp[window], *speed(log.t.to_numpy(), present(log)), 0.4,
-                                    min_overlap_s=1.5))
+        fits.append(estimate_offset(tm[window], sp[window], *speed(log.t.to_numpy(), present(log)),
+                                    ClockFitOptions(max_shift_s=0.4, min_overlap_s=1.5)))
     lag = fits[0].offset_s  # fakerig's release-to-snap delay, physics rather than clocks
     assert 0.05 < lag < 0.15 and fits[0].peak_correlation > 0.5
     assert abs(fits[1].offset_s - lag - OFFSET_S) < 1 / 120  # one frame of this export
@@ -332,7 +333,7 @@ def test_the_whole_take_shares_no_motion(group):
     p, _, v = native(mocap, "tip")
     tm, sp = speed(mocap.t.to_numpy()[v], p[v])
     with pytest.raises(CaptureError, match="flat correlation"):
-        estimate_offset(tm, sp, *speed(servo.t.to_numpy(), present(servo)), 0.5)
+        estimate_offset(tm, sp, *speed(servo.t.to_numpy(), present(servo)), ClockFitOptions(max_shift_s=0.5))
 
 
 # --- the operator's sheet -------------------------------------------------------------------------------

@@ -16,10 +16,13 @@ from embodied_snap.deploy import client
 from embodied_snap.deploy import controltable as CT
 from embodied_snap.deploy import manifest as MF
 from embodied_snap.plan import twin_plan
-from embodied_snap.twin.labrig import LabRig
+from embodied_snap.twin.labrig import LabRig, LabRigSetup
 
 from paper_protocol import CONFIG as CONFIG_PATH
 from paper_protocol import HOLD, PROTO
+
+# The rig's program plays in real time: make test, not make test-fast.
+pytestmark = pytest.mark.slow
 
 CONFIG = yaml.safe_load(CONFIG_PATH.read_text())
 SEED, DT = CONFIG["seed"], CONFIG["twin"]["dt"]
@@ -54,7 +57,10 @@ def played() -> dict:
     for gid in (HELD, ATTACH):
         group, goals, times = _group(gid)
         man = _man(goals)
-        rig = LabRig(group, SEED, DT, HOLD, PROTO, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"])
+        env = man["envelope"]
+        setup = LabRigSetup(seed=SEED, dt=DT, hold=HOLD, proto=PROTO, eeprom_min=env["eeprom_min"],
+                            eeprom_max=env["eeprom_max"])
+        rig = LabRig(group, setup)
         with rig as port:
             log, cause, failed = client.drive(man, port, 1000000, goals)
             res = rig.finish(None if cause else float(log[-1, 0]) + 0.005)

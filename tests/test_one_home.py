@@ -1,10 +1,12 @@
 """One home per word: an architecture, or an evidence set's category, is added by editing its table
 (embodied_snap/policy/architectures.py, embodied_snap/rawformat.py EVIDENCE) and config.yaml alone,
 in a copy of the repository, and it reaches the DAG, the claims and Fig. 5's data / the plan.
-Also: a name the tables do not hold is refused in one line."""
+Also: a name the tables do not hold is refused in one line, and results are written through one
+module (embodied_snap.io), never through the recording format's."""
 
 from __future__ import annotations
 
+import ast
 import json
 import re
 import shutil
@@ -71,8 +73,8 @@ for a, seeds in (("shared", 2), ("centralised", 2), ("unshared", 1), ("centralis
     for s in range(seeds):
         runs.append(run(a, s, [0.1 * (g + 1) + 0.01 * s for g in range(GENS)], n_params=networks.n_params(a)))
         evals.append(evals_for(a, s, 30 + s, rng))
-summary = A.summarize(runs, pd.concat(evals, ignore_index=True), evals_for("fixed", -1, 20, rng), TOLS, D_F, V_MIN,
-                      BUDGET, (0.45, 0.675))
+summary = A.summarize(runs, pd.concat(evals, ignore_index=True), evals_for("fixed", -1, 20, rng), BUDGET,
+                      A.SummaryCriteria(tolerances=TOLS, d_f=D_F, v_min=V_MIN, timing_s=(0.45, 0.675)))
 """
 
 CLAIMS_AND_FIG5 = SUMMARY + """
@@ -121,6 +123,7 @@ def test_a_fifth_architecture_reaches_the_claims_and_fig5(fifth):
     assert "Central.-32" in got["ticks"]  # panel (c)
 
 
+@pytest.mark.slow
 def test_without_its_row_the_architecture_is_refused_in_one_line(tmp_path):
     d = _copy(tmp_path)
     add_architecture(d)
@@ -157,6 +160,7 @@ BAD_PATTERN = ("config: raw_data.group_id_pattern: '(dyn' is not a regular expre
                "unterminated subpattern at position 0) (rule: group ids match a Python regular expression)")
 
 
+@pytest.mark.slow
 def test_a_group_id_pattern_that_is_no_regular_expression_is_one_line(tmp_path):
     """raw_data.group_id_pattern is compiled with the config, before the plan, index.csv or an
     import matches an id against it: a broken one is one line naming the key, for `esnap` (every
@@ -199,6 +203,7 @@ print(json.dumps(sorted(p[p.category == "extra"].group_id)))
 """
 
 
+@pytest.mark.slow
 def test_a_new_category_reaches_the_plan_and_the_dag(tmp_path):
     d = _copy(tmp_path)
     before = {w for r, w in dry_jobs(d) if r == "twin_acquire"}
@@ -216,3 +221,56 @@ def test_every_evidence_set_has_a_separation_rule():
     by its split roles."""
     assert set(EVIDENCE) - {"dynamics"} <= set(POLICY)
     assert {"train", "validation", "sealed"} <= set(POLICY)
+
+
+# ---------------------------------------------------------------------------- one home for writing results
+
+# What the recording format writes itself: a group's three files and the raw directory's index.csv.
+# Every other writer (json, parquet, the atomic write) is imported from embodied_snap.io or files;
+# a writer taken from rawformat that this list does not name is refused.
+RAW_WRITERS = {"write_group", "write_index"}
+
+
+def _rawformat_names(text: str) -> list[tuple[str, int]]:
+    """(name, line) of each name a source takes from rawformat: `from ...rawformat import name`, or
+    `RF.name` where RF is the module imported under any alias."""
+    tree = ast.parse(text)
+    aliases, names = set(), []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if (node.module or "").split(".")[-1] == "rawformat":
+                names += [(a.name, node.lineno) for a in node.names]
+            else:
+                aliases |= {a.asname or a.name for a in node.names if a.name == "rawformat"}
+        elif isinstance(node, ast.Import):
+            aliases |= {a.asname for a in node.names if a.name.endswith(".rawformat") and a.asname}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+            names.append((node.attr, node.lineno))
+    return names
+
+
+def _sources():
+    for d in ("embodied_snap", "workflow_scripts", "bench", "tests"):
+        yield from (p for p in sorted((REPO / d).rglob("*.py")) if p.name != "rawformat.py")
+    for p in [REPO / "Snakefile", *sorted((REPO / "rules").glob("*.smk"))]:  # their Python import lines
+        yield p
+
+
+def test_no_module_writes_results_through_the_recording_format():
+    from embodied_snap import rawformat
+
+    refused = []
+    for p in _sources():
+        text = p.read_text()
+        if p.suffix != ".py":
+            text = "\n".join(ln for ln in text.splitlines() if ln.startswith(("import ", "from ")))
+        for name, line in _rawformat_names(text):
+            obj = getattr(rawformat, name, None)
+            borrowed = callable(obj) and getattr(obj, "__module__", rawformat.__name__) != rawformat.__name__
+            if name not in RAW_WRITERS and (name.startswith("write") or borrowed):
+                refused.append(f"{p.relative_to(REPO)}:{line}: {name}")
+    assert not refused, "writers come from embodied_snap.io, not rawformat: " + ", ".join(refused)
+    # and the format writes no result of its own beyond its list
+    own = {n for n, f in vars(rawformat).items() if n.startswith("write") and f.__module__ == rawformat.__name__}
+    assert own == RAW_WRITERS

@@ -140,8 +140,9 @@ def test_cmaes_improves_held_out_reward_deterministically():
     assert search.score(ToySim(), [(search.policy_actions("shared", np.zeros(155), sel, norm, RANGES), sel)])[0] \
         == pytest.approx(zero, abs=1e-12)
     start = dict(init="zero", sigma0=0.1)
-    runs = [search.cmaes(ToySim(), "shared", 0, train, gen, sel, norm, RANGES, G, P, start, progress=False)
-            for _ in range(2)]
+    tgt = search.SearchTargets(train=train, gen_of=gen, select=sel, norm=norm)
+    spec = search.SearchSpec(ranges=RANGES, generations=G, popsize=P, start=start)
+    runs = [search.cmaes(ToySim(), "shared", 0, tgt, spec, progress=False) for _ in range(2)]
     assert runs[0]["curve"] == runs[1]["curve"] and runs[0]["theta"] == runs[1]["theta"]
     c = runs[0]["curve"]
     assert c[-1]["evaluations"] == G * P * 8 and runs[0]["n_params"] == 155
@@ -170,21 +171,23 @@ def test_runs_in_lockstep_are_each_the_run_searched_alone():
     train, sel = search.Targets(tr, ws), search.Targets(targets.sample(ws, 16, 22, 180, 0.03), ws)
     norm, start = search.feature_stats(train), dict(init="zero", sigma0=0.1)
     runs = [("shared", 0), ("centralised", 1), ("shared", 2)]
-    alone = [search.cmaes(ToySim(), a, s, train, gen, sel, norm, RANGES, G, P, start, progress=False,
-                          snapshots=(3,)) for a, s in runs]
+    tgt = search.SearchTargets(train=train, gen_of=gen, select=sel, norm=norm)
+    spec = search.SearchSpec(ranges=RANGES, generations=G, popsize=P, start=start, snapshots=(3,))
+    alone = [search.cmaes(ToySim(), a, s, tgt, spec, progress=False) for a, s in runs]
     sim = CountingSim()
-    together = search.lockstep(sim, [(a, s, None) for a, s in runs], train, gen, sel, norm, RANGES, G, P, start,
-                               progress=False, snapshots=(3,))
+    together = search.lockstep(sim, [(a, s, None) for a, s in runs], tgt, spec, progress=False)
     assert sim.batches == [3 * P * K] + [3 * (P * K + len(sel))] * (G - 1) + [3 * len(sel)]
     states = [x.pop("state") for x in alone]
     for x, y in zip(alone, together):
         y.pop("state")
         assert x == y
     # continued to a larger budget, in lockstep and alone: the same runs
-    longer = train.take(np.r_[np.arange(len(tr)), np.arange(K)]), np.r_[gen, [G] * K]
+    longer = search.SearchTargets(train=train.take(np.r_[np.arange(len(tr)), np.arange(K)]),
+                                  gen_of=np.r_[gen, [G] * K], select=sel, norm=norm)
     resumed = [(a, s, dict(r, state=st)) for (a, s), r, st in zip(runs, alone, states)]
-    more = search.lockstep(ToySim(), resumed, *longer, sel, norm, RANGES, G + 1, P, start, progress=False)
+    spec = search.SearchSpec(ranges=RANGES, generations=G + 1, popsize=P, start=start)
+    more = search.lockstep(ToySim(), resumed, longer, spec, progress=False)
     for (a, s, r), m in zip(resumed, more):
-        m1 = search.cmaes(ToySim(), a, s, *longer, sel, norm, RANGES, G + 1, P, start, progress=False, resume=r)
+        m1 = search.cmaes(ToySim(), a, s, longer, spec, progress=False, resume=r)
         m.pop("state"), m1.pop("state")
         assert m == m1 and len(m["curve"]) == G + 1

@@ -66,7 +66,8 @@ def data():
     runs.append(run("unshared", 0, [0.0] * GENS, n_params=366))
     evals.append(evals_for("unshared", 0, 12, rng))
     fixed = evals_for("fixed", -1, 33, rng)
-    s = A.summarize(runs, pd.concat(evals, ignore_index=True), fixed, TOLS, D_F, V_MIN, BUDGET, (0.45, 0.675))
+    s = A.summarize(runs, pd.concat(evals, ignore_index=True), fixed, BUDGET,
+                    A.SummaryCriteria(tolerances=TOLS, d_f=D_F, v_min=V_MIN, timing_s=(0.45, 0.675)))
     return runs, pd.concat(evals, ignore_index=True), fixed, s
 
 

@@ -1,5 +1,5 @@
 """One protocol from the validated config (issue 10): values, immutability, the Snakemake params
-round trip, and the start-up line for a grid the dynamics stage cannot run."""
+round trip, and the grid: the protocol's one rate, which a config cannot set (refused in one line)."""
 
 import copy
 import dataclasses
@@ -29,9 +29,11 @@ def test_values_come_from_config():
     assert PROTO.rig.rated_speed_tick_s == 3140.0 and PROTO.thresholds.attach_speed_mps == 1.0
     assert PROTO.rig.arm_length_m * 1e3 == 730.0  # the millimetres the tip errors were always divided by
     cfg = copy.deepcopy(CONFIG)
-    cfg["resample"]["hz"], cfg["policy"]["ranges"]["tau"], cfg["rig"]["rated_speed_tick_s"] = 100, [0.5, 0.6], 3000
+    cfg["resample"]["max_gap_s"], cfg["policy"]["ranges"]["tau"] = 0.2, [0.5, 0.6]
+    cfg["rig"]["rated_speed_tick_s"] = 3000
     p = protocol.load(cfg)
-    assert (p.sampling.dt, p.primitive.timing_s, p.rig.rated_speed_tick_s) == (0.01, (0.5, 0.6), 3000.0)
+    assert (p.sampling.max_gap_s, p.primitive.timing_s, p.rig.rated_speed_tick_s) == (0.2, (0.5, 0.6), 3000.0)
+    assert p.sampling.dt == 0.02  # the grid is the protocol's, whatever the config
 
 
 def test_frozen_and_params_round_trip():
@@ -47,15 +49,23 @@ def test_frozen_and_params_round_trip():
         protocol.params(CONFIG, "nonsense")
 
 
-def test_unsupported_grid_is_one_line_naming_the_stage():
-    assert protocol.unsupported(CONFIG) is None
+def test_the_grid_is_the_protocols_and_a_config_cannot_set_it():
+    from embodied_snap import runconfig
+
+    # the `sampling` param as config.yaml's `hz: 50` gave it (an int: the same param, the same bytes)
+    assert protocol.GRID_HZ == 50 and type(protocol.GRID_HZ) is int
+    assert protocol.params(CONFIG, "sampling") == {"sampling": {"hz": 50, "max_gap_s": 0.1}}
+    assert "hz" not in CONFIG["resample"]
     cfg = copy.deepcopy(CONFIG)
     cfg["resample"]["hz"] = 25
-    line = protocol.unsupported(cfg)
-    assert "\n" not in line and "resample.hz = 25" in line and "dynamics stage" in line
+    with pytest.raises(runconfig.ConfigError) as e:
+        runconfig.validate(cfg)
+    line = str(e.value)
+    assert "\n" not in line and "resample" in line and "'hz' was unexpected" in line, line
 
 
-def test_workflow_stops_at_start_up_on_a_25_hz_grid(tmp_path):
+@pytest.mark.slow
+def test_a_config_that_sets_the_grid_stops_the_workflow_at_start_up(tmp_path):
     for name in ("Snakefile", "config.yaml", "rules", "workflow_scripts", "schemas", "envs", "profiles",
                  "reference", "report", "embodied_snap"):
         src = REPO / name
@@ -69,8 +79,8 @@ def test_workflow_stops_at_start_up_on_a_25_hz_grid(tmp_path):
                        cwd=tmp_path, env=env, capture_output=True, text=True)
     out = r.stdout + r.stderr
     assert r.returncode != 0
-    lines = [ln for ln in out.splitlines() if "resample.hz = 25" in ln]
-    assert len(lines) == 1 and re.search(r"not supported by the dynamics stage", lines[0]), out[-2000:]
+    lines = [ln for ln in out.splitlines() if "'hz' was unexpected" in ln]
+    assert len(lines) == 1 and re.search(r"config: resample\b", lines[0]), out[-2000:]
     assert not (tmp_path / "results").exists() and not (tmp_path / "raw_data").exists()
 
 

@@ -98,6 +98,7 @@ def test_load_records_and_groups(tmp_path):
     assert groups.load_groups(tmp_path)["dyn_0002"]["role"] == "validation"
 
 
+@pytest.mark.slow
 def test_tracked_inside_snakemake(tmp_path):
     """The helper as workflow scripts use it: through Snakemake's `script:` directive."""
     import subprocess

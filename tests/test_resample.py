@@ -6,8 +6,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from embodied_snap.io import write_parquet
 from embodied_snap.quat import to_matrix as quat_to_matrix
-from embodied_snap.rawformat import group_paths, write_parquet
+from embodied_snap.rawformat import group_paths
 from embodied_snap.resample import (
     COMMAND_COLUMNS,
     FRAME_COLUMNS,

@@ -17,8 +17,10 @@ def _run(generations, snapshots=(), resume=None, tr=None):
     tr = targets.sample(ws, 8 * 8, 11, 180, 0.03) if tr is None else tr
     gen = np.arange(len(tr)) // 8
     train, sel = search.Targets(tr, ws), search.Targets(targets.sample(ws, 16, 22, 180, 0.03), ws)
-    return search.cmaes(ToySim(), "shared", 0, train, gen, sel, search.feature_stats(train), RANGES, generations,
-                        6, dict(init="zero", sigma0=0.5), progress=False, snapshots=snapshots, resume=resume)
+    tgt = search.SearchTargets(train=train, gen_of=gen, select=sel, norm=search.feature_stats(train))
+    spec = search.SearchSpec(ranges=RANGES, generations=generations, popsize=6, start=dict(init="zero", sigma0=0.5),
+                             snapshots=snapshots)
+    return search.cmaes(ToySim(), "shared", 0, tgt, spec, progress=False, resume=resume)
 
 
 def _same(a, b):

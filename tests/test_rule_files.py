@@ -102,8 +102,17 @@ def test_the_check_sees_a_name_read_across_files(tmp_path):
     for p in ("Snakefile", "rules"):
         (shutil.copytree if (ROOT / p).is_dir() else shutil.copy)(ROOT / p, tmp_path / p)
     ablation = tmp_path / "rules/ablation.smk"
-    ablation.write_text(ablation.read_text() + '\nX_OF_ABLATION = DSEEDS\n')
-    assert crossings(tmp_path) == {("ablation.smk", "dynamics.smk"): {"DSEEDS"}}
+    ablation.write_text(ablation.read_text() + '\nX_OF_ABLATION = DYNAMICS_SEEDS\n')
+    assert crossings(tmp_path) == {("ablation.smk", "dynamics.smk"): {"DYNAMICS_SEEDS"}}
+
+
+def test_the_resampled_shards_path_is_spelled_once():
+    """The grid's folder (results/data/50hz/, from protocol.GRID_HZ) is built in common.smk alone;
+    every other file names the shards through RESAMPLED_SHARD."""
+    spelled = {n for n, p in files().items() if re.search(r"results/data/[^\"']*hz", p.read_text())}
+    assert spelled == {"common.smk"}
+    readers = {n for n, p in files().items() if "RESAMPLED_SHARD" in used(compiled(p))}
+    assert {"Snakefile", "data.smk", "dynamics.smk", "policy.smk", "ablation.smk"} <= readers
 
 
 # --- parsing on its own, and in any order ----------------------------------------------------------

@@ -35,8 +35,10 @@ def test_a_search_starts_where_its_start_says():
     from test_policy import ToySim
 
     start = {"init": "glorot", "sigma0": 0.3, "init_seed": 5}
-    run = search.cmaes(ToySim(), "shared", 2, train, np.arange(len(tr)) // 8, sel, search.feature_stats(train),
-                       RANGES, 2, 4, start, progress=False)
+    tgt = search.SearchTargets(train=train, gen_of=np.arange(len(tr)) // 8, select=sel,
+                               norm=search.feature_stats(train))
+    spec = search.SearchSpec(ranges=RANGES, generations=2, popsize=4, start=start)
+    run = search.cmaes(ToySim(), "shared", 2, tgt, spec, progress=False)
     es = pickle.loads(run["state"])
     assert np.array_equal(es.x0, networks.initial("shared", start, 2))
     assert es.sigma0 == 0.3
@@ -121,12 +123,14 @@ def test_optimum_finds_a_known_per_target_optimum():
 
     ws = _workspace()
     T = search.Targets(targets.sample(ws, 6, 33, 180, 0.03), ws)
-    (u0, r0), (u1, r1) = (landscape.optimum(ToySim(), T, RANGES, 8, 0.3, 30, 2, s, progress=False) for s in (1, 2))
+    spec = landscape.OptimumSpec(popsize=8, sigma0=0.3, generations=30, restarts=2)
+    (u0, r0), (u1, r1) = (landscape.optimum(ToySim(), T, RANGES, spec, s, progress=False) for s in (1, 2))
     d = np.linalg.norm(T.p, axis=1)
     assert np.allclose(decode(u0, RANGES)["rho1"], 3000 + 1000 * (d - 0.5), atol=2.0)
     assert np.all(r0 > -0.002) and np.abs(r0 - r1).max() < 0.002
 
 
+@pytest.mark.slow
 def test_least_squares_fits_what_an_architecture_can_express():
     rng = np.random.default_rng(3)
     g = rng.normal(size=(60, 3))

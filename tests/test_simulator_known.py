@@ -20,7 +20,7 @@ import torch
 
 from embodied_snap.dynamics.model import AXIS, TIP, Dynamics
 from embodied_snap.dynamics.rollout import Ensemble
-from embodied_snap.policy.simulate import Simulator
+from embodied_snap.policy.simulate import SimSettings, Simulator
 
 from paper_protocol import PROTO
 
@@ -64,7 +64,8 @@ def _simulator(drifts=(B, 0.0, -B)) -> Simulator:
                 x=x, n=np.array([0.0, -1.0, 0.0]))
     ws = dict(bin_lo_deg=180.0, bin_width_deg=10.0, rho_max=[[4000.0, 4000.0, 4000.0]])
     ens = Ensemble(models=[_member(b) for b in drifts], device="cpu")
-    return Simulator(ens, bank, _Snap(), ws, dict(workspace_fraction=1.0, reward=REWARD), 0.75, EE, PROTO)
+    settings = SimSettings(policy=dict(workspace_fraction=1.0, reward=REWARD), after_s1=0.75, ee_m=EE, proto=PROTO)
+    return Simulator(ens, bank, _Snap(), ws, settings)
 
 
 def test_simulator_strike_release_frame_and_penalty_known_answer():

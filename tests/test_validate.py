@@ -16,7 +16,8 @@ import pandas as pd
 import pyarrow.parquet as pq
 import pytest
 
-from embodied_snap.rawformat import group_dir, group_paths, write_json, write_parquet
+from embodied_snap.io import write_json, write_parquet
+from embodied_snap.rawformat import group_dir, group_paths
 from embodied_snap.resample import resample_group
 from embodied_snap.validate import RecordingError, validate_group, validate_index, validate_shard
 

@@ -13,9 +13,10 @@ import pytest
 
 from embodied_snap import budget, sealed
 from embodied_snap.cli import main
+from embodied_snap.io import write_json
 from embodied_snap.lineage.policy import needs
 from embodied_snap.plan import load_plan
-from embodied_snap.rawformat import EVIDENCE, group_paths, read_meta, write_index, write_json
+from embodied_snap.rawformat import EVIDENCE, group_paths, read_meta, write_index
 from embodied_snap.validate import RecordingError, validate_group
 
 from fakerig import write_fake_group

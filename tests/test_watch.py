@@ -20,6 +20,8 @@ from test_separation import _run
 from embodied_snap.lineage import records as pv
 
 REPO = Path(__file__).resolve().parent.parent
+# The tests reading `runs` run Snakemake on a small workflow: make test, not make test-fast.
+slow = pytest.mark.slow
 SEALED = "results/splits/windows_sealed.npz"
 CASES = ("inside", "top", "import", "first")
 
@@ -132,6 +134,7 @@ def runs(tmp_path_factory):
     return root, plain, logs, recorded, forced, unhooked
 
 
+@slow
 @pytest.mark.parametrize("case", CASES)
 def test_a_sealed_read_fails_its_job_with_one_line(runs, case):
     """Inside tracked(), at the script's top level, in a package module's import, before the script's
@@ -143,6 +146,7 @@ def test_a_sealed_read_fails_its_job_with_one_line(runs, case):
     assert not recorded[case]
 
 
+@slow
 def test_the_clean_job_passes_and_its_reads_are_recorded(runs):
     """A job reading only what it declares passes (Snakemake's preamble loaded no package module before
     the watch) and its record lists what it read."""
@@ -152,11 +156,13 @@ def test_the_clean_job_passes_and_its_reads_are_recorded(runs):
     assert rec["reads"] == ["results/splits/windows_train.npz"]
 
 
+@slow
 def test_a_module_loaded_before_the_bookkeeping_is_watched_all_the_same(runs):
     _, _, logs, recorded, _, _ = runs
     assert logs["early"] == "" and recorded["early"]
 
 
+@slow
 def test_a_job_not_watched_from_its_start_fails(runs):
     """Without the start-up hook (a job environment other than the workflow's) a job fails in one line."""
     _, _, logs, _, _, unhooked = runs
@@ -167,6 +173,7 @@ def test_a_job_not_watched_from_its_start_fails(runs):
         "which the workflow puts on its jobs' PYTHONPATH, docs/lineage.md)")
 
 
+@slow
 @pytest.mark.parametrize("case", CASES)
 def test_check_separation_fails_when_the_job_is_forced_through(runs, case):
     root, _, _, _, forced, _ = runs

@@ -1,12 +1,12 @@
 """The pipeline on a real rig's recordings, as a lab brings them: no job may load the simulated rig's code.
 
-Recordings are made beforehand with `esnap twin acquire`, written out as a lab's capture system and
-servo PC would have them (tests/labexport.py: Motive CSV at 120 Hz in millimetres with occlusion
-gaps, servo logs on a clock 0.137 s behind, the operator's sheets) and brought in with `esnap
-import`, one session at a time; then the whole DAG runs with `raw_data.source: rig`. The
-provenance records list every package module each job loaded, and none is under
-embodied_snap/twin/. The servo calibration's claims and the operating bend rates are compared with
-the simulated rig's own run.
+Recordings are made beforehand with the simulated rig (the session's smoke run's, and one evidence
+set again with `esnap twin acquire`), written out as a lab's capture system and servo PC would have
+them (tests/labexport.py: Motive CSV at 120 Hz in millimetres with occlusion gaps, servo logs on a
+clock 0.137 s behind, the operator's sheets) and brought in with `esnap import`, one session at a
+time; then the whole DAG runs with `raw_data.source: rig`. The provenance records list every
+package module each job loaded, and none is under embodied_snap/twin/. The servo calibration's
+claims and the operating bend rates are compared with the simulated rig's own run.
 """
 
 from __future__ import annotations
@@ -45,7 +45,16 @@ def test_rig_source_builds_every_figure_without_the_twin(tmp_path, smoke_run):
         src = REPO / name
         (shutil.copytree if src.is_dir() else shutil.copy2)(
             src, tmp_path / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {}))
-    run([str(BIN / "esnap"), "twin", "acquire", "--config", "budget=smoke", "--raw-dir", "native"], tmp_path)
+    # The recordings: the session's smoke run's (the same seed and budget). `esnap twin acquire` records
+    # the same bytes as the workflow's acquisition jobs: one evidence set, recorded again, compared.
+    shutil.copytree(smoke_run / "raw_data", tmp_path / "native", symlinks=True)
+    run([str(BIN / "esnap"), "twin", "acquire", "--config", "budget=smoke", "--raw-dir", "again",
+         "--evidence-set", "servo_calibration"], tmp_path)
+    again = sorted((tmp_path / "again" / "groups").iterdir())
+    assert again and all(g.name.startswith("cal_") for g in again)
+    for g in again:
+        for f in g.iterdir():
+            assert f.read_bytes() == (tmp_path / "native" / "groups" / g.name / f.name).read_bytes(), f
     sessions = export_tree(tmp_path / "native", tmp_path / "exports", fmt="motive", rate_hz=120, offset_s=0.137)
     lab = tmp_path / "exports" / "lab.yaml"
     doc = yaml.safe_load(lab.read_text())

@@ -10,12 +10,11 @@ import torch
 from embodied_snap.ablation import bend, kinematics
 from embodied_snap.ablation.rollouts import rollout, selected_actions
 from embodied_snap.dynamics import data
-from embodied_snap.io import read_parquet
+from embodied_snap.io import read_parquet, write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
 from embodied_snap.policy.analysis import REPORT_TOL_M
 from embodied_snap.policy.reward import attached
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

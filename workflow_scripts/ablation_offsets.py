@@ -7,10 +7,9 @@ import torch
 
 from embodied_snap.ablation import release
 from embodied_snap.ablation.rollouts import rule_clock, selected_actions
-from embodied_snap.io import read_parquet
+from embodied_snap.io import read_parquet, write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

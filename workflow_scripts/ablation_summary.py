@@ -5,10 +5,9 @@ import json
 import sys
 
 from embodied_snap.ablation import summary
-from embodied_snap.io import read_parquet
+from embodied_snap.io import read_parquet, write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy.analysis import REPORT_TOL_M
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

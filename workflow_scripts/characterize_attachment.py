@@ -3,9 +3,10 @@
 import sys
 
 from embodied_snap.characterize import attachment, trials
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import RecordingError, write_json
+from embodied_snap.rawformat import RecordingError
 
 sys.stderr = open(snakemake.log[0], "w")
 try:

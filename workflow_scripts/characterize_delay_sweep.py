@@ -4,9 +4,9 @@ supported timing interval."""
 import sys
 
 from embodied_snap.characterize import delay, trials
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

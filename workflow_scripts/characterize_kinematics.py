@@ -4,9 +4,9 @@ import sys
 
 from embodied_snap.characterize import kinematics as K
 from embodied_snap.characterize import load
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 from embodied_snap.sources import recordings
 
 sys.stderr = open(snakemake.log[0], "w")

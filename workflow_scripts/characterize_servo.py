@@ -7,9 +7,10 @@ import numpy as np
 
 from embodied_snap.characterize import load
 from embodied_snap.characterize import servo as S
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import goal_timing, servo_id, write_json
+from embodied_snap.rawformat import goal_timing, servo_id
 from embodied_snap.sources import recordings
 
 sys.stderr = open(snakemake.log[0], "w")

@@ -6,9 +6,9 @@ Missing records are not reported here (jobs beside this one may be rebuilding th
 import json
 import sys
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.checks import check
 from embodied_snap.lineage.records import tracked
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

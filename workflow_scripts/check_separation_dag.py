@@ -3,9 +3,9 @@ does not move); check_separation adds the records and fails the workflow on any 
 
 import sys
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.checks import static_proof
 from embodied_snap.lineage.records import tracked
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

@@ -7,9 +7,9 @@ import sys
 import jsonschema
 
 from embodied_snap.deploy import manifest as MF
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import code_version, tracked
 from embodied_snap.policy.analysis import selected_seed
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -29,9 +29,10 @@ with tracked(snakemake):
                 "dynamics_model": "dynamics_train: training windows, selected on validation windows",
                 "servo_fit": "characterize_servo: servo_calibration groups"},
         retraining="none after export: every trial's meta.json carries this manifest's checksum")
-    man = MF.build(inputs, runs[run_path], json.load(open(I.workspace)), json.load(open(I.servo)),
-                   dict(P.deployment, policy=P.policy, n_placements=P.placements), P.protocol,
-                   code_version("."), lineage)
+    man = MF.build(inputs=inputs, run=runs[run_path], workspace=json.load(open(I.workspace)),
+                   servo_fit=json.load(open(I.servo)),
+                   cfg=dict(P.deployment, policy=P.policy, n_placements=P.placements), proto=P.protocol,
+                   code_version=code_version("."), lineage=lineage)
     jsonschema.validate(man, json.load(open(I.schema)))
     print(f"selected shared seed {seed}; checksum {man['checksum']}", file=sys.stderr)
     write_json(man, snakemake.output[0])

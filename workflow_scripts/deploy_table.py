@@ -7,10 +7,10 @@ import sys
 import pandas as pd
 
 from embodied_snap.deploy import table2 as D
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.paper import html
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

@@ -3,9 +3,9 @@
 import sys
 
 from embodied_snap.dynamics import evaluate as E
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 from embodied_snap.windows import load_windows
 
 sys.stderr = open(snakemake.log[0], "w")

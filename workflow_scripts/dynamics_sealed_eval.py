@@ -6,9 +6,9 @@ import torch
 
 from embodied_snap.dynamics import evaluate as E
 from embodied_snap.dynamics.model import load
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 from embodied_snap.windows import load_windows
 
 sys.stderr = open(snakemake.log[0], "w")

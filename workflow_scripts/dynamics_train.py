@@ -6,7 +6,7 @@ import sys
 import pandas as pd
 
 from embodied_snap.dynamics.model import n_params, save
-from embodied_snap.dynamics.train import train_seeds
+from embodied_snap.dynamics.train import TrainSettings, train_seeds
 from embodied_snap.lineage.records import tracked
 from embodied_snap.windows import load_windows
 
@@ -22,9 +22,10 @@ with tracked(snakemake):
     fits = train_seeds(
         load_windows(snakemake.input.train),
         load_windows(snakemake.input.validation),
-        seeds, threads=max(1, snakemake.threads // len(seeds)),
-        epochs=p.epochs, windows_per_epoch=p.windows_per_epoch, val_windows=p.val_windows,
-        batch_size=p.batch_size, lr=p.lr, patience=p.patience, device=p.device,
+        seeds,
+        TrainSettings(epochs=p.epochs, windows_per_epoch=p.windows_per_epoch, val_windows=p.val_windows,
+                      batch_size=p.batch_size, lr=p.lr, patience=p.patience, device=p.device),
+        threads=max(1, snakemake.threads // len(seeds)),
         log=lambda seed, r: print(f"seed {seed}: {r}", file=sys.stderr, flush=True),
     )
     for seed, (model, curve), out, curve_out in zip(seeds, fits, each(snakemake.output.model),

@@ -5,7 +5,7 @@ import sys
 from pathlib import Path
 
 from embodied_snap.characterize.load import group
-from embodied_snap.figures.system import plot_system
+from embodied_snap.figures.system import RecordedStrike, plot_system
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
@@ -18,6 +18,7 @@ with tracked(snakemake):
     ev = read_parquet(next(f for f in i.evals if Path(f).stem == f"shared_seed{selected['seed']}"))
     # the render's path, or an empty list with a real rig
     render = str(i.render) if isinstance(i.render, str) else None
-    shown = plot_system(render, mocap, servo, meta, selected, ev, snakemake.output.pdf, snakemake.output.png,
+    strike = RecordedStrike(mocap=mocap, servo=servo, meta=meta)
+    shown = plot_system(render, strike, selected, ev, snakemake.output.pdf, snakemake.output.png,
                         max_gap_s=from_params(snakemake.params.protocol).sampling.max_gap_s)
     print(json.dumps(shown, indent=1), file=sys.stderr)

@@ -19,8 +19,9 @@ with tracked(snakemake):
     ev = read_parquet(I.evaluation)
     T = search.Targets(ev.head(P.size["targets"]), ws)
     m, ranges = P.method, P.policy["ranges"]
-    rep = [landscape.optimum(sim, T, ranges, m["popsize"], m["sigma0"], P.size["generations"], P.size["restarts"], s)
-           for s in m["seeds"]]
+    spec = landscape.OptimumSpec(popsize=m["popsize"], sigma0=m["sigma0"], generations=P.size["generations"],
+                                 restarts=P.size["restarts"])
+    rep = [landscape.optimum(sim, T, ranges, spec, s) for s in m["seeds"]]
     R = np.stack([r for _, r in rep])
     k = R.argmax(0)
     u = np.stack([u for u, _ in rep])[k, np.arange(len(T))]

@@ -8,10 +8,9 @@ import sys
 
 import torch
 
-from embodied_snap.io import read_parquet
+from embodied_snap.io import read_parquet, write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search, simulate
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):
@@ -25,9 +24,12 @@ with tracked(snakemake):
         resume = dict(json.load(open(I.resume)), state=open(I.resume_state, "rb").read())
     O = snakemake.output  # one run and state, or (lockstep) the lists of params runs, in order
     outputs = list(zip(*([o] if isinstance(o, str) else o for o in (O.run, O.state))))
-    done = search.lockstep(sim, [(a, s, resume) for a, s in P.runs], train, tr["generation"].to_numpy(),
-                           search.Targets(read_parquet(I.selection), ws), search.feature_stats(train),
-                           P.policy["ranges"], P.generations, P.popsize, P.start, snapshots=P.snapshots)
+    targets = search.SearchTargets(train=train, gen_of=tr["generation"].to_numpy(),
+                                   select=search.Targets(read_parquet(I.selection), ws),
+                                   norm=search.feature_stats(train))
+    spec = search.SearchSpec(ranges=P.policy["ranges"], generations=P.generations, popsize=P.popsize,
+                             start=P.start, snapshots=P.snapshots)
+    done = search.lockstep(sim, [(a, s, resume) for a, s in P.runs], targets, spec)
     for run, (run_path, state_path) in zip(done, outputs):
         c = run["curve"]
         print(f"{run['arch']} seed {run['seed']}: held-out {c[0]['heldout_reward']:.3f} -> "

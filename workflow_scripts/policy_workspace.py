@@ -5,10 +5,10 @@ import sys
 import numpy as np
 
 from embodied_snap.dynamics import data
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import targets
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 
 sys.stderr = open(snakemake.log[0], "w")
 with tracked(snakemake):

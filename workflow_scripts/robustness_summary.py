@@ -7,7 +7,8 @@ import pandas as pd
 
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
-from embodied_snap.policy.robustness import BENCHMARK, summarize_variants
+from embodied_snap.policy.analysis import SummaryCriteria
+from embodied_snap.policy.robustness import BENCHMARK, VariantBudgets, summarize_variants
 from embodied_snap.protocol import from_params
 
 
@@ -31,9 +32,11 @@ with tracked(snakemake):
     evals_of.update({v: evals(f for f in i.evals if f"/{v}/eval/" in f) for v in p.variants})
     fixed = read_parquet(i.benchmark_fixed)
     fixed_of = {v: fixed for v in evals_of} | {"uniform": read_parquet(i.uniform_fixed)}
-    s = summarize_variants(bench, runs_of, evals_of, fixed_of, p.budget_generations, p.generations,
-                           p.evaluations_per_generation, p.tolerances, p.d_f, p.v_min,
-                           from_params(p.protocol).primitive.timing_s)
+    budgets = VariantBudgets(generations=p.generations, budget_generations=p.budget_generations,
+                             evaluations_per_generation=p.evaluations_per_generation)
+    criteria = SummaryCriteria(tolerances=p.tolerances, d_f=p.d_f, v_min=p.v_min,
+                               timing_s=from_params(p.protocol).primitive.timing_s)
+    s = summarize_variants(bench, runs_of, evals_of, fixed_of, budgets, criteria)
     for v, x in s.items():
         print(v, x["generations"], x["ranking_reward"], x["ranking_attachment"], file=sys.stderr)
     with open(snakemake.output[0], "w") as f:

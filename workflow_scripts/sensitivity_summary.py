@@ -8,7 +8,8 @@ import pandas as pd
 from embodied_snap.io import read_parquet
 from embodied_snap.lineage.records import tracked
 from embodied_snap.policy import search
-from embodied_snap.policy.sensitivity import summarize_starts
+from embodied_snap.policy.analysis import SummaryCriteria
+from embodied_snap.policy.sensitivity import ProbeSpec, summarize_starts
 from embodied_snap.protocol import from_params
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -26,8 +27,10 @@ with tracked(snakemake):
         evals_of[f.split("/")[-3]].append(read_parquet(f))
     evals_of = {s: pd.concat(v, ignore_index=True) for s, v in evals_of.items()}
     T = search.Targets(read_parquet(i.evaluation), json.load(open(i.workspace)))
-    s = summarize_starts(p.starts, runs_of, evals_of, read_parquet(i.fixed), T.g, p.tolerances, p.d_f, p.v_min,
-                         p.budget_evaluations, from_params(p.protocol).primitive.timing_s, p.seed)
+    criteria = SummaryCriteria(tolerances=p.tolerances, d_f=p.d_f, v_min=p.v_min,
+                               timing_s=from_params(p.protocol).primitive.timing_s)
+    s = summarize_starts(p.starts, runs_of, evals_of, read_parquet(i.fixed), p.budget_evaluations, criteria,
+                         ProbeSpec(features=T.g, seed=p.seed))
     for name, x in s.items():
         print(name, {a: round(r["mean"], 4) for a, r in x["reward"].items()}, "reproduced:", x["reproduced"],
               file=sys.stderr)

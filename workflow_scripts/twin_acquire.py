@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pandas as pd
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 from embodied_snap.twin.acquire import acquire_groups
 
 sys.stderr = open(snakemake.log[0], "w")

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from embodied_snap.deploy import trials as T
 from embodied_snap.lineage.records import tracked
-from embodied_snap.twin.deployment import run_trial
+from embodied_snap.twin.deployment import DeploymentSetup, run_trial
 from embodied_snap.validate import Limits
 
 sys.stderr = open(snakemake.log[0], "w")
@@ -19,8 +19,8 @@ with tracked(snakemake):
     raw = Path(O.index).parent
     n_pl, per = P.placements, P.trials_per_placement
     plan = [((k - 1) % n_pl + 1, k) for k in range(1, n_pl * per + 1)]  # placements interleaved over the session
-    job = partial(run_trial, snakemake.input.manifest, raw=raw, seed=P.seed, n_sessions=P.sessions, dt=P.dt,
-                  speed_mps=P.speed_mps)
+    setup = DeploymentSetup(raw=raw, seed=P.seed, n_sessions=P.sessions, dt=P.dt, speed_mps=P.speed_mps)
+    job = partial(run_trial, snakemake.input.manifest, setup=setup)
     with ProcessPoolExecutor(P.at_a_time) as pool:
         results = list(pool.map(job, [p for p, _ in plan], [k for _, k in plan]))
     rows, aborted = T.gate(raw, results, Limits(**P.gate))

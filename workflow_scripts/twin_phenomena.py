@@ -4,9 +4,9 @@ import sys
 
 import pandas as pd
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
 from embodied_snap.protocol import from_params
-from embodied_snap.rawformat import write_json
 from embodied_snap.twin.phenomena import phenomena
 
 sys.stderr = open(snakemake.log[0], "w")

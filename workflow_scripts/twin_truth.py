@@ -2,8 +2,8 @@
 
 import sys
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
-from embodied_snap.rawformat import write_json
 from embodied_snap.twin.truth import truth
 
 sys.stderr = open(snakemake.log[0], "w")

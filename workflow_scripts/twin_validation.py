@@ -3,8 +3,8 @@
 import json
 import sys
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
-from embodied_snap.rawformat import write_json
 from embodied_snap.reference import twin_comparison
 
 sys.stderr = open(snakemake.log[0], "w")

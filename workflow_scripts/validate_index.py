@@ -4,8 +4,8 @@ import json
 import sys
 from pathlib import Path
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
-from embodied_snap.rawformat import write_json
 from embodied_snap.validate import Limits, RecordingError, check_one_recording, validate_index
 
 sys.stderr = open(snakemake.log[0], "w")

@@ -3,8 +3,8 @@
 import sys
 from pathlib import Path
 
+from embodied_snap.io import write_json
 from embodied_snap.lineage.records import tracked
-from embodied_snap.rawformat import write_json
 from embodied_snap.validate import Limits, RecordingError, read_index, validate_shard
 
 sys.stderr = open(snakemake.log[0], "w")

@@ -4,24 +4,40 @@ error (results/dynamics/hold.json: median tip and tip-axis errors), over seeded 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .rollouts import perturbation, rollout
 
 
-def sweep(sim, act: dict, T, scales, draws: int, err_mm: float, err_deg: float, n_axis, seed: int,
-          arm_mm: float) -> list[dict]:
+@dataclass(frozen=True)
+class PerturbationSweep:
+    """The sweep's scales and draws, and the hold model's error they multiply (hold.json)."""
+
+    scales: tuple[float, ...]  # multiples of the hold error; 0 (unperturbed) goes first on its own
+    draws: int  # seeded draws per nonzero scale
+    err_mm: float  # the hold model's median tip error (mm)
+    err_deg: float  # its median tip-axis error (degrees)
+    arm_mm: float  # the arm length misses are reported against (mm)
+    seed: int  # seeds the draws
+
+
+def sweep(sim, act: dict, targets, spec: PerturbationSweep, hanging_axis) -> list[dict]:
     """Per scale (0 = unperturbed): median miss (mm, % of the arm), mean predicted peak speed,
     over all targets x draws (draws rolled out as one batch per scale)."""
-    rng = np.random.default_rng(seed)
-    N, out = len(T), []
-    for s in [0.0, *scales]:
-        m = 1 if s == 0 else draws
-        a = {k: np.tile(np.asarray(v), m) for k, v in act.items()}
-        pert = None if s == 0 else perturbation(rng, m * N, s * err_mm / 1e3, s * err_deg, n_axis)
-        r = rollout(sim, a, np.tile(T.p, (m, 1)), np.tile(T.normal, (m, 1)), perturb=pert)
-        miss = np.median(r["miss_m"]) * 1e3
-        out.append(dict(scale=float(s), n=int(m * N), draws=m, pos_mm=s * err_mm, axis_deg=s * err_deg,
-                        median_miss_mm=float(miss), median_miss_pct_arm=float(miss / arm_mm * 100),
-                        mean_peak_speed=float(np.mean(r["v_pk_mps"]))))
+    rng = np.random.default_rng(spec.seed)
+    n_targets, out = len(targets), []
+    for scale in [0.0, *spec.scales]:
+        n_draws = 1 if scale == 0 else spec.draws
+        tiled = {k: np.tile(np.asarray(v), n_draws) for k, v in act.items()}
+        pert = None if scale == 0 else perturbation(rng, n_draws * n_targets, scale * spec.err_mm / 1e3,
+                                                    scale * spec.err_deg, hanging_axis)
+        rolled = rollout(sim, tiled, np.tile(targets.p, (n_draws, 1)), np.tile(targets.normal, (n_draws, 1)),
+                         perturb=pert)
+        miss = np.median(rolled["miss_m"]) * 1e3
+        out.append(dict(scale=float(scale), n=int(n_draws * n_targets), draws=n_draws, pos_mm=scale * spec.err_mm,
+                        axis_deg=scale * spec.err_deg, median_miss_mm=float(miss),
+                        median_miss_pct_arm=float(miss / spec.arm_mm * 100),
+                        mean_peak_speed=float(np.mean(rolled["v_pk_mps"]))))
     return out

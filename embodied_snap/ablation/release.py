@@ -15,7 +15,7 @@ import pandas as pd
 
 from . import kinematics as KM
 from . import triggers as TR
-from .rollouts import OUTCOMES, release_table, rollout
+from .rollouts import OUTCOMES, held_rollout, release_table
 
 EVENT_RULES = ("s1_rate", "tip_speed", "s2_peak")
 RULES = ("target_only", "clock", *EVENT_RULES)
@@ -27,7 +27,7 @@ def events(sim, act: dict, T, proto: dict) -> dict:
     proto: dt, anchor_s, timing, s1_rate_deg_s, tip_speed_mps, hanging_axis."""
     dt, anchor, timing = proto["dt"], proto["anchor_s"], proto["timing"]
     last = int(TR.release_step(timing[1], anchor, dt))
-    x = rollout(sim, act, T.p, T.normal, held=True, steps=last)["x"]
+    x = held_rollout(sim, act, steps=last)["x"]
     th = KM.bend_angles(x, np.asarray(proto["hanging_axis"]))
     rate = KM.rates(th, dt)
     k = TR.event_steps(rate[..., 0], rate[..., 1], KM.tip_speed(x, dt), last, proto["s1_rate_deg_s"],

@@ -28,12 +28,9 @@ def _tile(act: dict, m: int) -> dict:
     return {k: np.tile(np.asarray(v), m) for k, v in act.items()}
 
 
-def rollout(sim, act: dict, p, normal, t_rel=None, held: bool = False, steps: int | None = None,
-            perturb=None, states: bool = False) -> dict:
-    """Commands act {name: (N,)} on canonical targets p, normals (N, 3). t_rel (N,) replaces the
-    policy's tau (projected onto T as always); held keeps S1 loaded for `steps` steps (no strike
-    is scored). perturb(xs) -> xs edits the pre-release history. states: add the ensemble-mean
-    arm state (N, steps+1, 12)."""
+def _simulate(sim, act: dict, *, t_rel=None, held: bool = False, steps: int | None = None, perturb=None):
+    """The commands, their hold cost and the ensemble rollout, as Simulator.run makes them: what
+    rollout and held_rollout share."""
     act = dict(act)
     if t_rel is not None:
         act["tau"] = np.asarray(t_rel, float)
@@ -46,11 +43,16 @@ def rollout(sim, act: dict, p, normal, t_rel=None, held: bool = False, steps: in
     xs, c_h = hold.start(sim.bank, act, U[:, :sim.history + 1])
     if perturb is not None:
         xs = perturb(xs)
-    out = sim.ens.rollout(xs, U[:, 1:], H, parts=(ARM,))
+    return act, c_h, sim.ens.rollout(xs, U[:, 1:], H, parts=(ARM,))
+
+
+def rollout(sim, act: dict, p, normal, *, t_rel=None, perturb=None, states: bool = False) -> dict:
+    """Commands act {name: (N,)} on canonical targets p, normals (N, 3), struck and scored. t_rel
+    (N,) replaces the policy's tau (projected onto T as always). perturb(xs) -> xs edits the
+    pre-release history. states: add the ensemble-mean arm state (N, H+1, 12)."""
+    act, c_h, out = _simulate(sim, act, t_rel=t_rel, perturb=perturb)
     x = out["mean_parts"][0]
-    res = dict(act, c_h=c_h, x=x) if states or held else dict(act, c_h=c_h)
-    if held:
-        return res
+    res = dict(act, c_h=c_h, x=x) if states else dict(act, c_h=c_h)
     tip, axis = x[..., TIP], x[..., AXIS]
     cup = tip + sim.ee_m * axis / np.linalg.norm(axis, axis=-1, keepdims=True)
     k_s1 = release_step(act["tau"], sim.anchor_s, sim.dt)
@@ -60,6 +62,13 @@ def rollout(sim, act: dict, p, normal, t_rel=None, held: bool = False, steps: in
     res.update(s, reward=RW.reward(s, c_h, p_snap, dis, sim.cfg["reward"]), k_s1=k_s1,
                k_ca=np.rint(s["t_ca_s"] / sim.dt).astype(int))
     return res
+
+
+def held_rollout(sim, act: dict, steps: int) -> dict:
+    """Commands act {name: (N,)} with S1 kept loaded for `steps` steps (no strike is scored): the
+    commands, their hold cost and the ensemble-mean arm state x (N, steps+1, 12)."""
+    act, c_h, out = _simulate(sim, act, held=True, steps=steps)
+    return dict(act, c_h=c_h, x=out["mean_parts"][0])
 
 
 def rule_clock(sim, triggers: dict, hanging_axis) -> dict:

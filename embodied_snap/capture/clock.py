@@ -21,7 +21,7 @@ period), and a peak at the edge of the searched window (the best shift may lie o
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from scipy.signal import correlate, correlation_lags
@@ -71,33 +71,33 @@ class ClockDrift:
         )
 
 
-def estimate_offset(
-    t_mocap,
-    motion,
-    t_servo,
-    command,
-    max_shift_s: float,
-    *,
-    guess_s: float = 0.0,
-    dt: float | None = None,
-    max_gap_s: float = 0.1,
-    min_overlap_s: float = 5.0,
-    min_peak_correlation: float = 0.5,
-    max_second_peak_ratio: float = 0.8,
-    lobe_fraction: float = 0.5,
-    batches: int = 20,
-    motion_name: str = "motion",
-    command_name: str = "command",
-    source="clock",
-) -> ClockFit:
+@dataclass(frozen=True)
+class ClockFitOptions:
+    """How estimate_offset searches for the shift, when it refuses one, and what it calls the signals."""
+
+    max_shift_s: float  # the shifts searched: guess_s +- max_shift_s
+    guess_s: float = 0.0  # the centre of the searched shifts
+    dt: float | None = None  # the common grid's step; None: the finer of the two sampling steps
+    max_gap_s: float = 0.1  # a NaN gap longer than this stays NaN rather than being bridged
+    min_overlap_s: float = 5.0  # the least shared time at a shift for its correlation to count
+    min_peak_correlation: float = 0.5  # a lower peak is a flat correlation
+    max_second_peak_ratio: float = 0.8  # a second peak this close to the first makes the shift ambiguous
+    lobe_fraction: float = 0.5  # the peak's lobe: the shifts around it where r >= lobe_fraction * peak
+    batches: int = 20  # batch means for the standard error of the correlation's slope
+    motion_name: str = "motion"  # the mocap signal, as messages and the fit's method name it
+    command_name: str = "command"  # the servo signal, likewise
+
+
+def estimate_offset(t_mocap, motion, t_servo, command, options: ClockFitOptions, source="clock") -> ClockFit:
     """The shift s in guess_s +- max_shift_s maximising the correlation of motion(t) and command(t - s).
 
-    Both signals are linearly interpolated onto grids of one step, `dt` or the finer of the two
-    sampling steps; a NaN gap longer than `max_gap_s` stays NaN rather than being bridged. At each
-    shift the correlation is the Pearson r of the grid samples both signals have there (at least
-    `min_overlap_s` of them), so gaps and the ends of the take weigh nothing. The best grid shift is
-    refined by a parabola through it and its two neighbours. The peak's lobe is the run of shifts
-    around it where r >= lobe_fraction * peak; a second peak is the highest local maximum outside it.
+    The settings named here are the fields of `options`. Both signals are linearly interpolated
+    onto grids of one step, `dt` or the finer of the two sampling steps; a NaN gap longer than
+    `max_gap_s` stays NaN rather than being bridged. At each shift the correlation is the Pearson r
+    of the grid samples both signals have there (at least `min_overlap_s` of them), so gaps and the
+    ends of the take weigh nothing. The best grid shift is refined by a parabola through it and its
+    two neighbours. The peak's lobe is the run of shifts around it where r >= lobe_fraction * peak;
+    a second peak is the highest local maximum outside it.
 
     Uncertainty: the standard error of the peak's position from the noise in the data. The peak is
     where the correlation's slope r'(s) crosses zero; an error e in that slope moves the crossing
@@ -109,21 +109,24 @@ def estimate_offset(
     On 40 synthetic noisy takes it covered 62 % of the errors, twice it 92 % (tests).
     """
     steps = _step(source, t_mocap, motion), _step(source, t_servo, command)
-    dt = dt or min(steps)
+    dt = options.dt or min(steps)
+    max_gap_s, min_overlap_s = options.max_gap_s, options.min_overlap_s
+    guess_s, max_shift_s = options.guess_s, options.max_shift_s
+    motion_name, command_name = options.motion_name, options.command_name
     t_mocap, t_servo = np.asarray(t_mocap, float), np.asarray(t_servo, float)
     # each signal on its own grid, both with step dt: grid shift k (mocap index - servo index) is
     # the clock shift gm0 - gs0 + k dt
-    gm = t_mocap[0] + dt * np.arange(int((t_mocap[-1] - t_mocap[0]) / dt) + 1)
-    gs = t_servo[0] + dt * np.arange(int((t_servo[-1] - t_servo[0]) / dt) + 1)
-    x = _standardise(_resample(t_mocap, motion, gm, max_gap_s))
-    y = _standardise(_resample(t_servo, command, gs, max_gap_s))
-    r, n = _pearson_by_lag(x, y)
+    grid_mocap = t_mocap[0] + dt * np.arange(int((t_mocap[-1] - t_mocap[0]) / dt) + 1)
+    grid_servo = t_servo[0] + dt * np.arange(int((t_servo[-1] - t_servo[0]) / dt) + 1)
+    x = _standardise(_resample(t_mocap, motion, grid_mocap, max_gap_s))
+    y = _standardise(_resample(t_servo, command, grid_servo, max_gap_s))
+    r, n_pairs = _pearson_by_lag(x, y)
     lags = correlation_lags(len(x), len(y))
-    shift = gm[0] - gs[0] + dt * lags
+    shift = grid_mocap[0] - grid_servo[0] + dt * lags
     inside = np.abs(shift - guess_s) <= max_shift_s
-    r, n, shift, lags = r[inside], n[inside], shift[inside], lags[inside]
+    r, n_pairs, shift, lags = r[inside], n_pairs[inside], shift[inside], lags[inside]
 
-    enough = n * dt >= min_overlap_s
+    enough = n_pairs * dt >= min_overlap_s
     if not enough.any():
         raise CaptureError(
             source, f"too little overlap: under {min_overlap_s:g} s of {motion_name} and {command_name} "
@@ -131,62 +134,64 @@ def estimate_offset(
             f"at least {min_overlap_s:g} s of shared motion",
         )
     r = np.where(enough, r, np.nan)
-    i = int(np.argmax(np.where(np.isfinite(r), r, -np.inf)))
-    peak = r[i]
-    if not peak >= min_peak_correlation:
+    best = int(np.argmax(np.where(np.isfinite(r), r, -np.inf)))
+    peak = r[best]
+    if not peak >= options.min_peak_correlation:
         raise CaptureError(
             source, f"flat correlation: {motion_name} and {command_name} correlate at most {peak:.2f} "
-            f"(minimum {min_peak_correlation:g}), no shared motion to align on",
+            f"(minimum {options.min_peak_correlation:g}), no shared motion to align on",
             "a clock shift is found from one clear correlation peak",
         )
-    lo, hi = _lobe(r, i, lobe_fraction * peak)
+    lo, hi = _lobe(r, best, options.lobe_fraction * peak)
     ratio = max(_second_peak(r, lo, hi), 0.0) / peak
-    if ratio >= max_second_peak_ratio:
+    if ratio >= options.max_second_peak_ratio:
         raise CaptureError(
             source, f"two peaks: the correlation of {motion_name} and {command_name} has a second peak "
-            f"{ratio:.2f} of the first (limit {max_second_peak_ratio:g}), the shift is ambiguous",
+            f"{ratio:.2f} of the first (limit {options.max_second_peak_ratio:g}), the shift is ambiguous",
             "a clock shift is found from one clear correlation peak",
         )
-    if i == 0 or i == len(r) - 1 or not np.isfinite(r[i - 1] + r[i + 1]):
+    if best == 0 or best == len(r) - 1 or not np.isfinite(r[best - 1] + r[best + 1]):
         raise CaptureError(
             source, f"the correlation of {motion_name} and {command_name} peaks at the edge of the "
-            f"searched shifts ({shift[i]:.3f} s): the best shift may lie outside {guess_s:.3f} +- {max_shift_s:g} s",
+            f"searched shifts ({shift[best]:.3f} s): the best shift may lie outside {guess_s:.3f} +- {max_shift_s:g} s",
             "a clock shift is found from one clear correlation peak",
         )
 
-    a, b, c = r[i - 1], r[i], r[i + 1]
-    curv = a - 2 * b + c  # < 0 at a maximum
-    delta = 0.5 * (a - c) / curv if curv < 0 else 0.0
-    r_peak = b - 0.25 * (a - c) * delta
-    se = _slope_error(x, y, int(lags[i]), dt, batches) / max(-curv / dt**2, 1e-12)
+    r_before, r_best, r_after = r[best - 1], r[best], r[best + 1]
+    curv = r_before - 2 * r_best + r_after  # < 0 at a maximum
+    delta = 0.5 * (r_before - r_after) / curv if curv < 0 else 0.0
+    r_peak = r_best - 0.25 * (r_before - r_after) * delta
+    se = _slope_error(x, y, int(lags[best]), dt, options.batches) / max(-curv / dt**2, 1e-12)
     return ClockFit(
-        offset_s=float(shift[i] + delta * dt),
+        offset_s=float(shift[best] + delta * dt),
         uncertainty_s=float(se),
         peak_correlation=float(r_peak),
         second_peak_ratio=float(ratio),
         method=f"cross-correlation of {motion_name} (mocap) and {command_name} (servo)",
-        n_samples=int(n[i]),
+        n_samples=int(n_pairs[best]),
         dt_s=float(dt),
     )
 
 
-def measure_drift(t_mocap, motion, t_servo, command, max_shift_s: float, *, part: float = 1 / 3, **kw) -> ClockDrift:
+def measure_drift(t_mocap, motion, t_servo, command, options: ClockFitOptions, *, part: float = 1 / 3,
+                  source="clock") -> ClockDrift:
     """The offset in the first and the last `part` of the overlap, and its rate of change.
 
     The whole-take fit first gives the overlap on the servo clock; each window is then fitted around
-    that offset (keywords as estimate_offset). rate = (last - first) / (distance of the windows'
-    centres), its uncertainty the two fits' uncertainties added in quadrature over that distance."""
+    that offset (options as estimate_offset's, guess_s the whole take's offset). rate = (last - first)
+    / (distance of the windows' centres), its uncertainty the two fits' uncertainties added in
+    quadrature over that distance."""
     t_servo = np.asarray(t_servo, float)
     command = np.asarray(command, float)
-    whole = estimate_offset(t_mocap, motion, t_servo, command, max_shift_s, **kw)
+    whole = estimate_offset(t_mocap, motion, t_servo, command, options, source)
     start = max(t_servo[0], np.asarray(t_mocap, float)[0] - whole.offset_s)
     end = min(t_servo[-1], np.asarray(t_mocap, float)[-1] - whole.offset_s)
     width = part * (end - start)
-    kw = dict(kw, guess_s=whole.offset_s)
+    around = replace(options, guess_s=whole.offset_s)
     fits = []
-    for a in (start, end - width):
-        w = (t_servo >= a) & (t_servo <= a + width)
-        fits.append(estimate_offset(t_mocap, motion, t_servo[w], command[w], max_shift_s, **kw))
+    for window_start in (start, end - width):
+        inside = (t_servo >= window_start) & (t_servo <= window_start + width)
+        fits.append(estimate_offset(t_mocap, motion, t_servo[inside], command[inside], around, source))
     span = end - width - start
     return ClockDrift(
         rate=(fits[1].offset_s - fits[0].offset_s) / span,

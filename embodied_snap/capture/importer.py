@@ -33,7 +33,7 @@ from ..characterize.mocap import on_grid, section_bends, tip_speed
 from ..files import sha256
 from ..io import read_parquet
 from ..validate import COVER_TOL_S, ONE_RECORDING_RULE
-from .clock import check_drift, estimate_offset, measure_drift
+from .clock import ClockFitOptions, check_drift, estimate_offset, measure_drift
 from .errors import CaptureError
 from .lab import Lab, read_yaml
 
@@ -328,16 +328,16 @@ def align(mocap: pd.DataFrame, servo: pd.DataFrame, lab: Lab, src, max_gap_s: fl
         offset, rate = float(offset), float(slope)  # at t_servo_ref 0, the line's own origin
     else:
         section, motion, command = clock_signals(mocap, servo, max_gap_s)
-        kw = dict(
+        options = ClockFitOptions(
+            max_shift_s=lab.clock["max_offset_s"],
             guess_s=t_m[0] - t_s[0],
             min_overlap_s=MIN_OVERLAP_S,
             min_peak_correlation=MIN_PEAK_CORRELATION,
             max_gap_s=max_gap_s,
             motion_name=f"the S{section} bend rate",
             command_name=f"the S{section} tendon travel rate",
-            source=src,
         )
-        fit = estimate_offset(t_m, motion, t_s, command, lab.clock["max_offset_s"], **kw)
+        fit = estimate_offset(t_m, motion, t_s, command, options, source=src)
         offset, rec = fit.offset_s, dict(fit.to_meta(), sync="none")
         rate = 0.0
         # Drift moves the offset by (drift x duration): at the limit, over a take of a few
@@ -352,7 +352,7 @@ def align(mocap: pd.DataFrame, servo: pd.DataFrame, lab: Lab, src, max_gap_s: fl
                 f"the offset by {span * limit * 1e3:.2f} ms, under one frame ({frame_s * 1e3:.2f} ms)"
             )
         else:
-            drift = measure_drift(t_m, motion, t_s, command, lab.clock["max_offset_s"], **kw)
+            drift = measure_drift(t_m, motion, t_s, command, options, source=src)
             rec.update(drift=drift.rate, drift_uncertainty=drift.uncertainty)
             check_drift(drift.rate, limit, src)
             rate = drift.rate

@@ -503,6 +503,7 @@ def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
         import pandas as pd
 
         from .. import rawformat as RF
+        from ..io import write_parquet
     except ImportError:
         np.savez(d / "servo.npz", log=log)
         files = [d / "servo.npz"]
@@ -511,7 +512,7 @@ def write_trial(out: Path, meta: dict, log: np.ndarray) -> list[Path]:
         for c in df.columns[1:]:
             if not c.startswith("current"):
                 df[c] = df[c].round().astype("int64")
-        RF.write_parquet(df, d / "servo.parquet")
+        write_parquet(df, d / "servo.parquet")
         files = [d / "servo.parquet"]
     write_meta(d / "meta.json", meta)
     (Path(out) / "aborted" / f"{meta['group_id']}.json").unlink(missing_ok=True)

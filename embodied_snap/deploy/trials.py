@@ -12,7 +12,7 @@ import json
 from pathlib import Path
 
 from .. import rawformat as RF
-from ..io import parquet_rows
+from ..io import parquet_rows, write_json
 from ..rawformat import RecordingError
 from ..validate import Limits, check_one_recording, validate_group
 
@@ -40,8 +40,8 @@ def gate(raw, trials: list[dict], limits: Limits) -> tuple[list[dict], list[dict
 
 def write(rows: list[dict], aborted: list[dict], planned: int, index, aborted_path) -> None:
     """index.csv and aborted.json (each written whole, through a temporary file)."""
-    RF.write_json(dict(planned=planned, recorded=len(rows), aborted=sorted(aborted, key=lambda a: a["group_id"])),
-                  aborted_path)
+    write_json(dict(planned=planned, recorded=len(rows), aborted=sorted(aborted, key=lambda a: a["group_id"])),
+               aborted_path)
     RF.write_index(rows, index)
 
 

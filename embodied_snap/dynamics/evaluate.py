@@ -4,7 +4,7 @@ The model is trained on H = 25 steps (0.5 s at 50 Hz). The paper's 0.7 s point i
 continuing the same open-loop rollout (Eq. 4) to 0.7 s / dt = 35 steps with the recorded commands;
 so that all horizons are measured on the same windows, only anchors whose group holds 35 recorded
 future frames (and commands to t+39) are used, i.e. each group's last 10 anchors are dropped. The
-step dt is the protocol's (config resample.hz), passed in.
+step dt is the protocol's (protocol.GRID_HZ), passed in.
 """
 
 from __future__ import annotations

@@ -11,6 +11,7 @@ from __future__ import annotations
 import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -92,35 +93,35 @@ def seed_all(seed: int) -> None:
     torch.use_deterministic_algorithms(True)
 
 
-def train(
-    Wtr: dict,
-    Wva: dict,
-    seed: int,
-    *,
-    epochs: int,
-    windows_per_epoch: int,
-    val_windows: int,
-    batch_size: int,
-    lr: float,
-    patience: int,
-    device: str = "cpu",
-    log=print,
-) -> tuple[Dynamics, list[dict]]:
-    """Fit one seed (sizes and optimiser settings: config `dynamics` and the budget's) on `device`
-    (config dynamics.device; device.resolve falls back to CPU). Returns the model of the best
-    validation epoch, on CPU, and the learning curve."""
-    device = resolve(device, log)
+@dataclass(frozen=True)
+class TrainSettings:
+    """Sizes and optimiser settings of one fit (config `dynamics` and the budget's `dynamics`)."""
+
+    epochs: int  # the most epochs, and the cosine schedule's length
+    windows_per_epoch: int  # training windows drawn (without replacement) per epoch
+    val_windows: int  # the fixed validation windows scored after each epoch
+    batch_size: int  # windows per optimiser step
+    lr: float  # Adam's initial learning rate
+    patience: int  # epochs without a better validation loss before training stops
+    device: str = "cpu"  # config dynamics.device; device.resolve falls back to CPU
+
+
+def train(Wtr: dict, Wva: dict, seed: int, settings: TrainSettings, *, log=print) -> tuple[Dynamics, list[dict]]:
+    """Fit one seed with `settings` on its device. Returns the model of the best validation epoch,
+    on CPU, and the learning curve."""
+    epochs, windows_per_epoch, batch_size = settings.epochs, settings.windows_per_epoch, settings.batch_size
+    device = resolve(settings.device, log)
     seed_all(seed)
     rng = np.random.default_rng(seed)
     Wtr, Wva = prepare(Wtr), prepare(Wva)
     # Normalisation from the training split only; the look-ahead is the windows'.
     model = Dynamics(norm_stats(Wtr["X"], Wtr["U"], Wtr["group"]), int(Wtr["lookahead"])).to(device)
-    opt = torch.optim.Adam(model.parameters(), lr=lr)
+    opt = torch.optim.Adam(model.parameters(), lr=settings.lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, epochs)
     wh = step_weights(int(Wtr["horizon"])).to(device)
     # The same validation windows for every seed and epoch (seeded apart from the model seed).
     nva = len(Wva["anchors"])
-    val_idx = np.sort(np.random.default_rng(0).choice(nva, min(val_windows, nva), replace=False))
+    val_idx = np.sort(np.random.default_rng(0).choice(nva, min(settings.val_windows, nva), replace=False))
     best, best_state, bad, curve = np.inf, None, 0, []
     t0 = time.perf_counter()
     for ep in range(1, epochs + 1):
@@ -146,7 +147,7 @@ def train(
             best_state = {k: v.clone() for k, v in model.state_dict().items()}
         else:
             bad += 1
-            if bad >= patience:
+            if bad >= settings.patience:
                 break
     model.load_state_dict(best_state)
     return model.cpu().eval(), curve
@@ -158,20 +159,20 @@ _SIDE_BY_SIDE: dict = {}  # what the forked seeds share (the windows are not cop
 def _train_forked(seed: int) -> tuple[Dynamics, list[dict]]:
     a = _SIDE_BY_SIDE
     torch.set_num_threads(a["threads"])
-    return train(a["Wtr"], a["Wva"], seed, log=lambda r: a["log"](seed, r), **a["kw"])
+    return train(a["Wtr"], a["Wva"], seed, a["settings"], log=lambda r: a["log"](seed, r))
 
 
-def train_seeds(Wtr: dict, Wva: dict, seeds: list[int], *, log, threads: int = 1,
-                **kw) -> list[tuple[Dynamics, list[dict]]]:
+def train_seeds(Wtr: dict, Wva: dict, seeds: list[int], settings: TrainSettings, *, log,
+                threads: int = 1) -> list[tuple[Dynamics, list[dict]]]:
     """train() for each seed, all at once: one forked process per seed with `threads` torch threads
     (config dynamics.seeds_in_one_job). Three seeds on two cores then end together, where three
     one-core jobs leave a core idle while the third trains alone (docs/benchmarks.md). Each seed's
     model is the one train() gives it alone. On a GPU (or with one seed) they train in turn, in this
     process: CUDA does not survive a fork. `log(seed, row)` gets each epoch's row."""
-    if kw.get("device", "cpu") != "cpu" or len(seeds) == 1:
+    if settings.device != "cpu" or len(seeds) == 1:
         torch.set_num_threads(threads)
-        return [train(Wtr, Wva, s, log=lambda r, s=s: log(s, r), **kw) for s in seeds]
-    _SIDE_BY_SIDE.update(Wtr=Wtr, Wva=Wva, threads=threads, log=log, kw=kw)
+        return [train(Wtr, Wva, s, settings, log=lambda r, s=s: log(s, r)) for s in seeds]
+    _SIDE_BY_SIDE.update(Wtr=Wtr, Wva=Wva, threads=threads, log=log, settings=settings)
     try:
         with ProcessPoolExecutor(len(seeds), mp_context=multiprocessing.get_context("fork")) as pool:
             return list(pool.map(_train_forked, seeds))

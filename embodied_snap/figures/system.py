@@ -5,6 +5,8 @@ per section (the same weights) and the selected policy's commands for one evalua
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import matplotlib.image as mpimg
 import numpy as np
 import pandas as pd
@@ -33,10 +35,21 @@ def _commands(row: pd.Series) -> dict:
     return {a: float(row[col.get(a, a)]) for a in ACTIONS}
 
 
-def plot_system(render_png, mocap: pd.DataFrame, servo: pd.DataFrame, meta: dict, selected: dict,
-                ev: pd.DataFrame, pdf, png, *, max_gap_s: float) -> dict:
-    """Draw Fig. 1 (mocap dropouts up to max_gap_s bridged); returns what it shows (the group, the
-    target and its commands)."""
+@dataclass(frozen=True)
+class RecordedStrike:
+    """One recorded group, as characterize.load.group reads it."""
+
+    mocap: pd.DataFrame  # the tracked bodies
+    servo: pd.DataFrame  # the servo log on the capture clock
+    meta: dict  # the group's meta.json (group_id, labels)
+
+
+def plot_system(render_png, strike: RecordedStrike, selected: dict, ev: pd.DataFrame, pdf, png, *,
+                max_gap_s: float) -> dict:
+    """Draw Fig. 1 (mocap dropouts up to max_gap_s bridged) from the arm's render (None with a real
+    rig), one recorded strike, the selected policy (summary's `selected`) and its evaluation `ev`;
+    returns what it shows (the group, the target and its commands)."""
+    mocap, servo, meta = strike.mocap, strike.servo, strike.meta
     setup()
     fig = plt.figure(figsize=(TEXT_WIDTH_IN, 3.2))
     gs = fig.add_gridspec(2, 3, width_ratios=[0.7, 1.5, 1.3], hspace=0.18, wspace=0.3,
@@ -63,18 +76,19 @@ def plot_system(render_png, mocap: pd.DataFrame, servo: pd.DataFrame, meta: dict
     # (b)
     t0 = float(lab.get("t_preload", 0.0))
     t1 = float(lab.get("t_s1", servo.t.max())) + 0.8
-    s = servo[(servo.t >= t0 - 0.3) & (servo.t <= t1)]
+    logged = servo[(servo.t >= t0 - 0.3) & (servo.t <= t1)]
     ax1 = fig.add_subplot(gs[0, 1])
     for k in range(1, 10):
-        ax1.plot(s.t - t0, s[f"goal_{k}"], color=PALETTE[(k - 1) // 3], lw=0.8, alpha=0.5 + 0.25 * ((k - 1) % 3))
+        ax1.plot(logged.t - t0, logged[f"goal_{k}"], color=PALETTE[(k - 1) // 3], lw=0.8,
+                 alpha=0.5 + 0.25 * ((k - 1) % 3))
     ax1.set_ylabel("servo goal (ticks)")
     ax1.set_title(f"(b) primitive, recorded strike {meta['group_id']}", loc="left")
     ax1.tick_params(labelbottom=False)
-    m = mocap[(mocap.t >= t0 - 0.3) & (mocap.t <= t1)]
-    theta, _ = section_bends(m, max_gap_s)
+    tracked = mocap[(mocap.t >= t0 - 0.3) & (mocap.t <= t1)]
+    theta, _ = section_bends(tracked, max_gap_s)
     ax2 = fig.add_subplot(gs[1, 1], sharex=ax1)
     for i in range(3):
-        ax2.plot(m.t - t0, np.rad2deg(theta[:, i]), color=PALETTE[i], lw=1, label=f"S{i + 1}")
+        ax2.plot(tracked.t - t0, np.rad2deg(theta[:, i]), color=PALETTE[i], lw=1, label=f"S{i + 1}")
     ax2.set_ylabel("bend (deg)")
     ax2.set_xlabel("time from preload (s)")
     ax2.legend(loc="upper right", frameon=False, ncol=3, borderaxespad=0.1)

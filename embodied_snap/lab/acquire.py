@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import datetime as _dt
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -161,14 +162,27 @@ def write_session_files(doc: dict, out: Path) -> list[Path]:
     return files
 
 
-def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False, baud: int | None = None,
-            session: str | None = None, evidence_set: str | None = None, ask=input, say=print, rig=None) -> dict:
-    """Record the plan's groups from `start` (default: the first not recorded), of one session and/or
-    evidence set when given (the plan's order kept). `port`: the serial
+@dataclass(frozen=True)
+class AcquireOptions:
+    """esnap lab acquire's options: which of the plan's groups to record, and how."""
+
+    start: str | None = None  # --from: the first group to record (default: the first not recorded)
+    session: str | None = None  # --session: only that session's groups
+    evidence_set: str | None = None  # --evidence-set: only that evidence set's groups
+    baud: int | None = None  # --baud: the bus's baud rate (default: the plan's)
+    yes: bool = False  # --yes: run every group without asking the operator (no labels asked either)
+
+
+def acquire(plan_path, port, out, *, options: AcquireOptions = AcquireOptions(), ask=input, say=print,
+            rig=None) -> dict:
+    """Record the plan's groups from `options.start` (default: the first not recorded), of one session
+    and/or evidence set when given (the plan's order kept). `port`: the serial
     port; `rig(entry)`, if given, a context manager yielding the port of that group instead (the
     simulated rig's virtual bus). Returns {recorded: [...], skipped: [...]}; raises LabError (one
     line) when refused or aborted, after torque went off."""
-    doc, todo, goals, baud = checked(plan_path, out, start, baud, session, evidence_set)
+    yes = options.yes
+    doc, todo, goals, baud = checked(plan_path, out, options.start, options.baud, options.session,
+                                     options.evidence_set)
     out = Path(out)
     (out / CAPTURES).mkdir(parents=True, exist_ok=True)
     hz = float(doc["servos"]["hz"])
@@ -179,10 +193,10 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
         say(f"[{n}/{len(todo)}] {gid} ({entry['evidence_set']}/{entry['category']}, session {entry['session']}, "
             f"{entry['duration_s']:.1f} s): {entry['operator']}")
         if not yes:
-            a = ask("Enter: run it, s: skip, q: stop the session ").strip().lower()
-            if a == "q":
+            answer = ask("Enter: run it, s: skip, q: stop the session ").strip().lower()
+            if answer == "q":
                 break
-            if a == "s":
+            if answer == "s":
                 skipped.append(gid)
                 continue
         k_cue = cue_cycle(entry, hz)
@@ -193,9 +207,9 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
                     say("\a>>> PUSH THE MOUNT NOW")
         for attempt in range(1, MAX_ATTEMPTS + 1):
             ctx = rig(entry) if rig is not None else contextlib.nullcontext(port)
-            with ctx as p:
+            with ctx as group_port:
                 started = {}
-                log, cause, failed = client.drive(doc, p, baud, goals[gid], on_cycle, started)
+                log, cause, failed = client.drive(doc, group_port, baud, goals[gid], on_cycle, started)
                 if started.get("ramp_cycles"):
                     say(f"{gid}: {client.ramped(started)}")
                 refused = None if cause is not None else log_refused(doc, log, out, gid)
@@ -219,10 +233,10 @@ def acquire(plan_path, port, out, *, start: str | None = None, yes: bool = False
                            "cannot keep the sync-read rate (docs/lab.md, a busy PC)")
         labels = ask_labels(entry, ask) if entry["labels"] and not yes else {}
         if labels:
-            mp = out / "groups" / gid / "meta.json"
-            meta = json.loads(mp.read_text())
+            meta_path = out / "groups" / gid / "meta.json"
+            meta = json.loads(meta_path.read_text())
             meta["labels"].update(labels)
-            client.write_meta(mp, meta)
+            client.write_meta(meta_path, meta)
         done.append(gid)
         write_session_files(doc, out)
     return finish(doc, out, done, skipped, say)

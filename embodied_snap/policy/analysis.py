@@ -11,6 +11,7 @@ one JSON-able dict. Standard deviations are over seeds with ddof=1 (None for a s
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -275,11 +276,22 @@ def policy_stats(df: pd.DataFrame, report_m: float, d_f: float, v_min: float, de
 # ---------------------------------------------------------------------------- everything
 
 
-def summarize(runs: list[dict], evals: pd.DataFrame, fixed: pd.DataFrame, tolerances, d_f: float, v_min: float,
-              budget_evaluations: int, timing_s, report_m: float = REPORT_TOL_M) -> dict:
-    """The one dict behind results/policy/summary.json, Fig. 5 and results/policy/claims.csv.
-    timing_s: the timing set of Eq. 8 (the protocol's)."""
-    tolerances = [float(t) for t in tolerances]
+@dataclass(frozen=True)
+class SummaryCriteria:
+    """What the evaluation rows are read by: Eq. 11's attachment, its tolerances and the timing set."""
+
+    tolerances: list  # lateral tolerances of the attachment sweep (m), config policy.tolerances_m
+    d_f: float  # Eq. 11: the largest |gap| to the target's plane that attaches (m)
+    v_min: float  # Eq. 11: the least peak speed that attaches in the simulator (m/s)
+    timing_s: tuple  # the timing set T of Eq. 8 (the protocol's)
+    report_m: float = REPORT_TOL_M  # the reporting tolerance (V-A)
+
+
+def summarize(runs: list[dict], evals: pd.DataFrame, fixed: pd.DataFrame, budget_evaluations: int,
+              criteria: SummaryCriteria) -> dict:
+    """The one dict behind results/policy/summary.json, Fig. 5 and results/policy/claims.csv."""
+    d_f, v_min, timing_s, report_m = criteria.d_f, criteria.v_min, criteria.timing_s, criteria.report_m
+    tolerances = [float(t) for t in criteria.tolerances]
     archs = _archs({r["arch"] for r in runs})
     finals = final_rewards(runs)
 
@@ -305,7 +317,7 @@ def summarize(runs: list[dict], evals: pd.DataFrame, fixed: pd.DataFrame, tolera
     # V-A: the selected shared policy against the best fixed primitive
     sel = selected_seed(runs) if "shared" in finals else None
     sel_reward = next((float(r["selection_reward"]) for r in runs if r["arch"] == "shared" and r["seed"] == sel), None)
-    s = evals[(evals.arch == "shared") & (evals.seed == sel)]
+    sel_evals = evals[(evals.arch == "shared") & (evals.seed == sel)]
     best_c = max(at_report.get(MATCHED, {}).items(), key=lambda kv: kv[1], default=(None, None))
 
     return dict(
@@ -340,7 +352,7 @@ def summarize(runs: list[dict], evals: pd.DataFrame, fixed: pd.DataFrame, tolera
             arch="shared",
             seed=sel,
             selection_reward=sel_reward,
-            **policy_stats(s, report_m, d_f, v_min, detail=True, timing_s=timing_s),
+            **policy_stats(sel_evals, report_m, d_f, v_min, detail=True, timing_s=timing_s),
         )
         if sel is not None
         else None,

@@ -15,6 +15,8 @@ and what it says about the architectures apart from their search.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cma
 import numpy as np
 import pandas as pd
@@ -28,28 +30,39 @@ from .networks import ACTIONS, initial, n_params, outputs
 U_MAX = 0.99  # a least-squares target on the box's edge would need infinite tanh weights
 
 
-def optimum(sim, T, ranges: dict, popsize: int, sigma0: float, generations: int, restarts: int, seed: int,
+@dataclass(frozen=True)
+class OptimumSpec:
+    """The per-target CMA-ES of `optimum` (config landscape: method and size)."""
+
+    popsize: int  # candidates per generation, for each target
+    sigma0: float  # initial step size in u
+    generations: int  # generations of each restart
+    restarts: int  # restarts from uniform random points
+
+
+def optimum(sim, T, ranges: dict, spec: OptimumSpec, seed: int,
             progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(u (N, 6), reward (N,)): the best candidate any restart evaluated, per target of T."""
-    n = len(T)
+    n, popsize = len(T), spec.popsize
     best_u, best_r = np.zeros((n, 6)), np.full(n, -np.inf)
     rng = np.random.default_rng(seed)
     idx = np.repeat(np.arange(n), popsize)  # each target's candidates side by side in one batch
-    bar = tqdm(total=restarts * generations, desc=f"optimum seed {seed}", disable=not progress, mininterval=5)
-    for _ in range(restarts):
-        es = [cma.CMAEvolutionStrategy(rng.uniform(-1, 1, 6), sigma0,
+    bar = tqdm(total=spec.restarts * spec.generations, desc=f"optimum seed {seed}", disable=not progress,
+               mininterval=5)
+    for _ in range(spec.restarts):
+        es = [cma.CMAEvolutionStrategy(rng.uniform(-1, 1, 6), spec.sigma0,
                                        {"popsize": popsize, "bounds": [-1, 1], "verbose": -9,
                                         "seed": int(rng.integers(1, 2**31 - 1))}) for _ in range(n)]
-        for _ in range(generations):
-            X = np.array([e.ask() for e in es])  # (n, popsize, 6)
-            act = decode(X.reshape(-1, 6), ranges)
-            R = sim.run(act, T.p[idx], T.normal[idx])["reward"].reshape(n, popsize)
+        for _ in range(spec.generations):
+            cands = np.array([e.ask() for e in es])  # (n, popsize, 6)
+            act = decode(cands.reshape(-1, 6), ranges)
+            rewards = sim.run(act, T.p[idx], T.normal[idx])["reward"].reshape(n, popsize)
             for i, e in enumerate(es):
-                e.tell(list(X[i]), list(-R[i]))
-            j = R.argmax(1)
-            better = R[np.arange(n), j] > best_r
-            best_r[better] = R[np.arange(n), j][better]
-            best_u[better] = X[np.arange(n), j][better]
+                e.tell(list(cands[i]), list(-rewards[i]))
+            j = rewards.argmax(1)
+            better = rewards[np.arange(n), j] > best_r
+            best_r[better] = rewards[np.arange(n), j][better]
+            best_u[better] = cands[np.arange(n), j][better]
             bar.update()
         bar.set_postfix(mean=f"{best_r.mean():.3f}")
     bar.close()

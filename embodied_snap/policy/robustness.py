@@ -9,8 +9,10 @@ each run had made at that point, `search.at_budget`; a larger one the runs conti
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from ..reference import fmt
-from .analysis import ARCHS, summarize
+from .analysis import ARCHS, SummaryCriteria, summarize
 from .search import at_budget
 
 BENCHMARK = "benchmark"
@@ -30,34 +32,43 @@ def ranking(means: dict, tie: float = 1e-9) -> list[str]:
     return [" = ".join(sorted(p, key=order.index)) for p in places]
 
 
-def variant(runs, evals, fixed, tolerances, d_f, v_min, budget_evaluations, timing_s) -> dict:
+def variant(runs, evals, fixed, budget_evaluations: int, criteria: SummaryCriteria) -> dict:
     """One variant: the benchmark's statistics, then its rankings by final held-out reward and by
     attachment at the reporting tolerance."""
-    s = summarize(runs, evals, fixed, tolerances, d_f, v_min, budget_evaluations, timing_s)
-    out = {k: s[k] for k in KEEP}
-    out["selected"] = {k: s["selected"][k] for k in ("seed", "attachment", "correlations")} if s["selected"] else None
-    out["ranking_reward"] = ranking({a: r["mean"] for a, r in s["reward"].items()})
-    out["ranking_attachment"] = ranking({a: r["mean"] for a, r in s["attachment_report"].items() if a != "fixed"})
+    summary = summarize(runs, evals, fixed, budget_evaluations, criteria)
+    out = {k: summary[k] for k in KEEP}
+    selected = summary["selected"]
+    out["selected"] = {k: selected[k] for k in ("seed", "attachment", "correlations")} if selected else None
+    out["ranking_reward"] = ranking({a: r["mean"] for a, r in summary["reward"].items()})
+    out["ranking_attachment"] = ranking({a: r["mean"] for a, r in summary["attachment_report"].items()
+                                         if a != "fixed"})
     return out
 
 
-def summarize_variants(benchmark_runs, runs_of: dict, evals_of: dict, fixed_of: dict, budget_generations: dict,
-                       generations: int, evaluations_per_generation: int, tolerances, d_f, v_min,
-                       timing_s) -> dict:
+@dataclass(frozen=True)
+class VariantBudgets:
+    """Each variant's search budget."""
+
+    generations: int  # the benchmark's CMA-ES generations, and every variant's without its own
+    budget_generations: dict  # variant -> its generations, for the budget variants
+    evaluations_per_generation: int  # simulator evaluations per generation (popsize x training targets)
+
+
+def summarize_variants(benchmark_runs, runs_of: dict, evals_of: dict, fixed_of: dict, budgets: VariantBudgets,
+                       criteria: SummaryCriteria) -> dict:
     """runs_of / evals_of / fixed_of: variant -> its runs, evaluation rows and fixed-primitive rows, the
     benchmark first (runs_of lacks the smaller budgets: those are the benchmark's runs at their
     snapshot)."""
     out = {}
-    for v in evals_of:
-        g = budget_generations.get(v, generations)
-        runs = runs_of.get(v) or [at_budget(r, g) for r in benchmark_runs]
-        out[v] = variant(runs, evals_of[v], fixed_of[v], tolerances, d_f, v_min, g * evaluations_per_generation,
-                         timing_s)
-        out[v]["generations"] = g
+    for name in evals_of:
+        gens = budgets.budget_generations.get(name, budgets.generations)
+        runs = runs_of.get(name) or [at_budget(r, gens) for r in benchmark_runs]
+        out[name] = variant(runs, evals_of[name], fixed_of[name], gens * budgets.evaluations_per_generation, criteria)
+        out[name]["generations"] = gens
     ref = out[BENCHMARK]
-    for v in out.values():
-        v["ranking_reward_holds"] = v["ranking_reward"] == ref["ranking_reward"]
-        v["ranking_attachment_holds"] = v["ranking_attachment"] == ref["ranking_attachment"]
+    for summary in out.values():
+        summary["ranking_reward_holds"] = summary["ranking_reward"] == ref["ranking_reward"]
+        summary["ranking_attachment_holds"] = summary["ranking_attachment"] == ref["ranking_attachment"]
     return out
 
 

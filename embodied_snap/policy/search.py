@@ -10,6 +10,7 @@ training targets; after every generation the CMA-ES mean is scored on the select
 from __future__ import annotations
 
 import pickle
+from dataclasses import dataclass
 
 import cma
 import numpy as np
@@ -66,15 +67,39 @@ def score(sim, jobs: list[tuple[dict, Targets]]) -> np.ndarray:
     return np.array([x.mean() for x in np.split(r, np.cumsum([len(T) for _, T in jobs])[:-1])])
 
 
+@dataclass(frozen=True)
+class SearchSpec:
+    """What every run of one search shares: its budget, where it starts and the commands' ranges."""
+
+    ranges: dict  # config policy.ranges: the range of each command (Eq. 7)
+    generations: int  # CMA-ES generations in all (a resumed run continues up to this budget)
+    popsize: int  # CMA-ES candidates per generation
+    start: dict  # where a run begins (`networks.initial`) and its initial step size sigma0
+    # generation counts at which the selection so far is kept (`run["snapshots"]`): a run stopped
+    # there selects exactly that policy, since CMA-ES does not depend on the total budget
+    snapshots: tuple = ()
+
+
+@dataclass(frozen=True)
+class SearchTargets:
+    """The targets a search trains and selects on."""
+
+    train: Targets  # training targets
+    gen_of: np.ndarray  # (len(train),) the generation each training target belongs to
+    select: Targets  # selection targets: the mean after every generation is scored on them
+    norm: dict  # the training targets' feature statistics (`feature_stats`); a resumed run keeps its own
+
+
 class _Run:
     """One CMA-ES run's state between generations (see `cmaes`)."""
 
-    def __init__(self, arch, seed, popsize, generations, start, snapshots, resume, held_targets, norm, ranges):
-        self.arch, self.seed, self.popsize, self.snapshots = arch, seed, popsize, snapshots
-        self.select, self.norm, self.ranges = held_targets, norm, ranges
+    def __init__(self, arch: str, seed: int, spec: SearchSpec, resume: dict | None, select: Targets, norm: dict):
+        self.arch, self.seed, self.popsize, self.snapshots = arch, seed, spec.popsize, spec.snapshots
+        self.select, self.norm, self.ranges = select, norm, spec.ranges
         if resume is None:
+            start = spec.start
             self.es = cma.CMAEvolutionStrategy(networks.initial(arch, start, seed), start["sigma0"],
-                                               {"popsize": popsize, "verbose": -9, "maxiter": generations,
+                                               {"popsize": spec.popsize, "verbose": -9, "maxiter": spec.generations,
                                                 # its own generator: runs in lockstep draw apart
                                                 "randn": np.random.RandomState(seed + 1).randn,
                                                 "seed": np.nan})
@@ -84,26 +109,27 @@ class _Run:
             self.curve, self.snaps = [dict(c) for c in resume["curve"]], dict(resume.get("snapshots", {}))
             self.best = (resume["selection_reward"], np.asarray(resume["theta"]), resume["selected_generation"])
         self.pending = False  # the current mean's held-out score is not yet logged
-        self.X = None
+        self.candidates = None
 
     def held_job(self):
         return policy_actions(self.arch, self.es.mean, self.select, self.norm, self.ranges), self.select
 
-    def jobs(self, T: Targets) -> list:
-        """This generation's rollouts: its candidates on T, then the previous mean's held-out score."""
-        self.X = self.es.ask()
-        jobs = [(policy_actions(self.arch, x, T, self.norm, self.ranges), T) for x in self.X]
+    def jobs(self, targets: Targets) -> list:
+        """This generation's rollouts: its candidates on `targets`, then the previous mean's held-out score."""
+        self.candidates = self.es.ask()
+        jobs = [(policy_actions(self.arch, x, targets, self.norm, self.ranges), targets) for x in self.candidates]
         return jobs + [self.held_job()] if self.pending else jobs
 
-    def tell(self, R: np.ndarray, gen: int, per_gen: int) -> float | None:
+    def tell(self, rewards: np.ndarray, gen: int, per_gen: int) -> float | None:
         held = None
         if self.pending:  # es.mean is still the mean after the previous generation
-            held = self.log_held(float(R[-1]))
-        P = self.popsize
-        self.es.tell(self.X, list(-R[:P]))
+            held = self.log_held(float(rewards[-1]))
+        pop = self.popsize
+        self.es.tell(self.candidates, list(-rewards[:pop]))
         self.pending = True
         self.curve.append(dict(generation=gen + 1, evaluations=(gen + 1) * per_gen, heldout_reward=None,
-                               train_reward_mean=float(R[:P].mean()), train_reward_best=float(R[:P].max())))
+                               train_reward_mean=float(rewards[:pop].mean()),
+                               train_reward_best=float(rewards[:pop].max())))
         return held
 
     def log_held(self, held: float) -> float:
@@ -124,45 +150,39 @@ class _Run:
                     theta=best[1].tolist(), norm=self.norm, snapshots=self.snaps, state=pickle.dumps(self.es))
 
 
-def cmaes(sim, arch: str, seed: int, train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
-          ranges: dict, generations: int, popsize: int, start: dict, progress: bool = True,
-          snapshots=(), resume: dict | None = None) -> dict:
-    """One CMA-ES run; gen_of (len(train),) assigns each training target to its generation; start:
-    where it begins (`networks.initial`) and its initial step size sigma0.
+def cmaes(sim, arch: str, seed: int, targets: SearchTargets, spec: SearchSpec, progress: bool = True,
+          resume: dict | None = None) -> dict:
+    """One CMA-ES run of architecture `arch` with optimisation seed `seed`.
 
     The held-out score of the mean after generation g rides in the batch of generation g + 1 (the
     mean that generation samples around), so each generation is one batch of rollouts.
-    snapshots: generation counts at which the selection so far is kept (`run["snapshots"]`): a run
-    stopped there selects exactly that policy, since CMA-ES does not depend on the total budget.
-    resume: a finished run (with its `state`) to continue up to `generations` (a larger budget).
+    resume: a finished run (with its `state`) to continue up to `spec.generations` (a larger budget).
     The returned run carries `state` (bytes: the pickled CMA-ES object, with the run's own random
     generator, so a continuation in another process draws what the longer run would have) for such
     a continuation; it is not JSON and is written on its own."""
-    return lockstep(sim, [(arch, seed, resume)], train, gen_of, select, norm, ranges, generations, popsize,
-                    start, progress, snapshots)[0]
+    return lockstep(sim, [(arch, seed, resume)], targets, spec, progress)[0]
 
 
-def lockstep(sim, runs: list[tuple], train: Targets, gen_of: np.ndarray, select: Targets, norm: dict,
-             ranges: dict, generations: int, popsize: int, start: dict, progress: bool = True,
-             snapshots=()) -> list[dict]:
+def lockstep(sim, runs: list[tuple], targets: SearchTargets, spec: SearchSpec, progress: bool = True) -> list[dict]:
     """Several CMA-ES runs, (arch, seed, resume) each, on the same targets, a generation at a time:
     each generation's rollouts of every run are one batch (config policy.batch_runs, the schedule
     for a device with room for many populations at once). Each run samples from its own generator
     (seed + 1), so a run's result is `cmaes`'s for it alone, up to the floating-point effect of the
     batch on the rollouts; a resumed run's norm is its own."""
-    rs = [_Run(a, s, popsize, generations, start, snapshots, res, select, res["norm"] if res else norm, ranges)
-          for a, s, res in runs]
+    gen_of = targets.gen_of
+    rs = [_Run(a, s, spec, res, targets.select, res["norm"] if res else targets.norm) for a, s, res in runs]
     first = {len(r.curve) for r in rs}
     if len(first) != 1:
         raise ValueError(f"runs in lockstep start at one generation, not at {sorted(first)}")
-    per_gen = evaluations(1, popsize, int((gen_of == gen_of.min()).sum()))
+    per_gen = evaluations(1, spec.popsize, int((gen_of == gen_of.min()).sum()))
     desc = f"{runs[0][0]} seed {runs[0][1]}" if len(rs) == 1 else f"{len(rs)} runs in lockstep"
-    bar = tqdm(range(first.pop(), generations), desc=desc, disable=not progress, mininterval=5)
+    bar = tqdm(range(first.pop(), spec.generations), desc=desc, disable=not progress, mininterval=5)
     for gen in bar:
-        T = train.take(np.flatnonzero(gen_of == gen))
-        jobs = [r.jobs(T) for r in rs]
-        R = score(sim, [j for js in jobs for j in js])
-        held = [r.tell(x, gen, per_gen) for r, x in zip(rs, np.split(R, np.cumsum([len(js) for js in jobs])[:-1]))]
+        gen_targets = targets.train.take(np.flatnonzero(gen_of == gen))
+        jobs = [r.jobs(gen_targets) for r in rs]
+        rewards = score(sim, [j for js in jobs for j in js])
+        split = np.split(rewards, np.cumsum([len(js) for js in jobs])[:-1])
+        held = [r.tell(x, gen, per_gen) for r, x in zip(rs, split)]
         if held[0] is not None:
             bar.set_postfix(heldout=f"{np.mean(held):.3f}")
     pending = [r for r in rs if r.pending]

@@ -9,10 +9,12 @@ a two-sided Mann-Whitney p < ALPHA. The slope probe says how tied a policy's thr
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..reference import fmt
-from .analysis import MATCHED
+from .analysis import MATCHED, SummaryCriteria
 from .networks import ACTIONS, initial, outputs
 from .robustness import variant
 from .search import normalised
@@ -70,26 +72,36 @@ def start_probe(arch: str, start: dict, g: np.ndarray, seeds, draws: int, rng) -
     return float(np.mean(cos)) if cos else None
 
 
-def summarize_starts(starts: dict, runs_of: dict, evals_of: dict, fixed, features: np.ndarray, tolerances, d_f,
-                     v_min, budget_evaluations: int, timing_s, seed: int, draws: int = 8) -> dict:
+@dataclass(frozen=True)
+class ProbeSpec:
+    """What the slope probes read."""
+
+    features: np.ndarray  # the evaluation targets' raw features (N, 3), normalised per run by its training statistics
+    seed: int  # seed of the start probe's draws
+    draws: int = 8  # first candidates the start probe draws per run's seed
+
+
+def summarize_starts(starts: dict, runs_of: dict, evals_of: dict, fixed, budget_evaluations: int,
+                     criteria: SummaryCriteria, probe_spec: ProbeSpec) -> dict:
     """starts: name -> its start (the benchmark's first); runs_of / evals_of: name -> its runs and
-    evaluation rows; features: the evaluation targets' raw features (N, 3), normalised per run by
-    that run's training statistics for the probe; seed: of the start probe's draws."""
+    evaluation rows; fixed: the fixed primitive's evaluation rows."""
+    features = probe_spec.features
     out = {}
     for name, start in starts.items():
         runs = sorted(runs_of[name], key=lambda r: (r["arch"], r["seed"]))
-        s = variant(runs, evals_of[name], fixed, tolerances, d_f, v_min, budget_evaluations, timing_s)
-        s["start"] = {k: v for k, v in start.items() if k != "archs"}
-        s["reproduced"] = reproduced(s)
-        s["probe"], s["start_probe"], first = {}, {}, {}
-        for r in runs:
-            g = normalised(features, r["norm"])
-            first.setdefault(r["arch"], g)
-            s["probe"].setdefault(r["arch"], {})[str(r["seed"])] = probe(r["arch"], r["theta"], g)
-        for a in s["archs"]:
-            rng = np.random.default_rng(seed)
-            s["start_probe"][a] = start_probe(a, s["start"], first[a], s["seeds"][a], draws, rng)
-        out[name] = s
+        summary = variant(runs, evals_of[name], fixed, budget_evaluations, criteria)
+        summary["start"] = {k: v for k, v in start.items() if k != "archs"}
+        summary["reproduced"] = reproduced(summary)
+        summary["probe"], summary["start_probe"], first = {}, {}, {}
+        for run in runs:
+            g = normalised(features, run["norm"])
+            first.setdefault(run["arch"], g)
+            summary["probe"].setdefault(run["arch"], {})[str(run["seed"])] = probe(run["arch"], run["theta"], g)
+        for arch in summary["archs"]:
+            rng = np.random.default_rng(probe_spec.seed)
+            summary["start_probe"][arch] = start_probe(arch, summary["start"], first[arch], summary["seeds"][arch],
+                                                       probe_spec.draws, rng)
+        out[name] = summary
     return out
 
 

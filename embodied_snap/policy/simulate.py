@@ -12,6 +12,7 @@ window history, the canonical bearing, the S2 ramp and the timing set are the pr
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,16 +22,34 @@ from ..dynamics import hold
 from ..dynamics.model import AXIS, TIP
 from ..dynamics.rollout import Ensemble
 from ..primitive import release_goals
-from ..protocol import Protocol, from_params
+from ..protocol import Protocol, from_params, load
 from . import reward as RW
 from .actions import project_timing, workspace_clamp
 
 
+@dataclass(frozen=True)
+class SimSettings:
+    """A simulator's settings, apart from what it loads from the workflow's files."""
+
+    policy: dict  # config policy: its workspace_fraction, reward (Eq. 9-11) and device
+    after_s1: float  # how long the rollout runs past the latest S1 release (s), config dynamics.after_s1_s
+    ee_m: float  # the end effector's length (m) that extends the tracked tip to the cup, config rig.end_effector_m
+    proto: Protocol  # the protocol's sampling, windows and primitive sections
+
+    @classmethod
+    def from_config(cls, cfg: dict) -> SimSettings:
+        """The settings of a whole config (the benches; a workflow job has its params, `for_job`)."""
+        return cls(policy=cfg["policy"], after_s1=cfg["dynamics"]["after_s1_s"], ee_m=cfg["rig"]["end_effector_m"],
+                   proto=load(cfg))
+
+
 class Simulator:
-    def __init__(self, ensemble, bank: dict, snap, workspace: dict, cfg: dict, after_s1: float, ee_m: float,
-                 proto: Protocol):
-        """cfg: config `policy`; proto: the protocol's sampling, windows and primitive sections."""
-        self.ens, self.bank, self.snap, self.ws, self.cfg, self.ee_m = ensemble, bank, snap, workspace, cfg, ee_m
+    def __init__(self, ensemble, bank: dict, snap, workspace: dict, settings: SimSettings):
+        """ensemble: the GRU ensemble (`Ensemble`); bank: the hold bank; snap: the P_snap model;
+        workspace: the measured workspace (workspace.json)."""
+        proto, after_s1 = settings.proto, settings.after_s1
+        self.ens, self.bank, self.snap, self.ws = ensemble, bank, snap, workspace
+        self.cfg, self.ee_m = settings.policy, settings.ee_m
         self.dt, self.history = proto.sampling.dt, proto.windows.history
         self.phi0, self.s2_ramp = proto.primitive.phi0_deg, proto.primitive.s2_ramp_s
         self.timing = proto.primitive.timing_s
@@ -63,19 +82,18 @@ class Simulator:
         return dict(act, **s, reward=r, c_h=c_h, p_snap=p_snap, disagreement_m=dis)
 
 
-def from_files(models, bank_path, snap_path, workspace_path, cfg: dict, after_s1: float, ee_m: float,
-               proto: Protocol, device=None):
+def from_files(models, bank_path, snap_path, workspace_path, settings: SimSettings, device=None):
     """The simulator of a workflow job: ensemble, hold bank, P_snap and workspace from their files."""
     with np.load(bank_path) as z:
         bank = {k: z[k] for k in ("q", "x", "n")}
     ws = json.load(open(workspace_path))
-    return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, cfg, after_s1, ee_m, proto), ws
+    return Simulator(Ensemble(models, device=device), bank, SN.load(snap_path), ws, settings), ws
 
 
 def for_job(inputs, params):
-    """The simulator of a workflow job whose rule takes SIMULATOR inputs and SIM_PARAMS params
+    """The simulator of a workflow job whose rule takes SIMULATOR inputs and SIMULATOR_PARAMS params
     (rules/policy.smk): the ensemble (on config policy.device), hold bank, P_snap, workspace,
     config policy and protocol."""
     I, P = inputs, params
-    return from_files(I.models, I.bank, I.snap, I.workspace, P.policy, P.after_s1, P.ee_m, from_params(P.protocol),
-                      P.policy["device"])
+    settings = SimSettings(policy=P.policy, after_s1=P.after_s1, ee_m=P.ee_m, proto=from_params(P.protocol))
+    return from_files(I.models, I.bank, I.snap, I.workspace, settings, device=P.policy["device"])

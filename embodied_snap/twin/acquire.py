@@ -105,7 +105,8 @@ def simulate_group(
         wrench, held = hold_wrench(np.arange(1, len(goals) + 1) * dt, t_e, hold, r)
         prog.update(held)  # what the operator did (the label is when)
         held = dict(base_event_t=t_e)
-    trial = sim.run(arm, shaft, dt, TR.LATCH, target=target, seal=TR.SEAL, wrench=wrench, rate=np.array(sv["rate"]))
+    trial = sim.run(arm, shaft, dt, TR.LATCH, scene=sim.Scene(target=target, seal=TR.SEAL), wrench=wrench,
+                    rate=np.array(sv["rate"]))
     ev = trial.events
     # --- observed labels (what the operator notes on the rig) ---
     vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / dt

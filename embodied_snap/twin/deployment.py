@@ -18,6 +18,7 @@ import datetime as _dt
 import json
 import multiprocessing as mp
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -25,14 +26,48 @@ import numpy as np
 from .. import rawformat as RF
 from ..acquisition.draws import rng_for
 from ..deploy import client
-from ..io import parquet_rows
+from ..io import parquet_rows, write_json, write_parquet
 from . import mocap as MC
 from . import truth as TR
 from .acquire import BLOCK_HALF
+from .sim import Scene
 from .stepper import Stepper
 from .vbus import VirtualBus
 
 T0 = _dt.datetime(2026, 5, 4, 9, 0, 0)  # the deployment day, after every acquisition session
+
+
+@dataclass(frozen=True)
+class DeploymentSetup:
+    """What every deployment trial of a run shares."""
+
+    raw: Path | str  # the deployment tree the trials are written into (groups/, aborted/)
+    seed: int  # the twin's seed: session parameters, servos, noise streams
+    n_sessions: int  # the trials are spread over this many sessions (session variation)
+    dt: float  # physics step, s
+    speed_mps: float  # tip speed at or above which the operator notes a snap_speed_event, m/s
+
+
+@dataclass(frozen=True)
+class RigParts:
+    """One simulated rig as rig() builds it (here and in labrig.py); its bus is not started."""
+
+    bus: VirtualBus  # the virtual Dynamixel bus on its pty
+    stepper: Stepper  # the arm behind the bus, stepped live
+    target: dict | None  # the block (sim.Scene.target), None: no target
+    sess: dict  # the session's parameters (truth.session_params)
+    rng: np.random.Generator  # the rig's noise stream
+    push: object = None  # a held-base group's push (labrig.HeldBase), else None
+
+
+def trial_id(k: int) -> str:
+    """The group id of deployment trial k (1-based)."""
+    return f"{RF.PREFIX['deployment']}_{k:04d}"
+
+
+def trial_session(k: int, n_sessions: int) -> str:
+    """The session of trial k: session variation, the trials spread over the sessions."""
+    return f"s{(k - 1) % n_sessions + 1:02d}"
 
 
 def block_at(p, normal) -> dict:
@@ -48,16 +83,17 @@ def block_at(p, normal) -> dict:
                 normal=np.array([0.0, 0.0, 1.0]), half=np.array(BLOCK_HALF))
 
 
-def rig(man: dict, placement: int, session: str, seed: int, dt: float, gid: str, faults: dict | None = None):
-    """(bus, stepper, target, session params, rng) for one trial; the bus is not started."""
-    sess = TR.session_params(seed, session)
+def rig(man: dict, placement: int, k: int, setup: DeploymentSetup, faults: dict | None = None) -> RigParts:
+    """The rig of trial k at a placement; the bus is not started."""
+    sess = TR.session_params(setup.seed, trial_session(k, setup.n_sessions))
     pl = man["placements"][placement - 1]
     target = block_at(pl["target_m"], pl["normal"])
-    r = rng_for(seed, "deployment", gid)
+    rng = rng_for(setup.seed, "deployment", trial_id(k))
     arm = dict(TR.arm_params(sess), block_mass=TR.BLOCK["mass_kg"])
-    st = Stepper(arm, TR.servo_params(seed), dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r, block=TR.BLOCK)
+    st = Stepper(arm, TR.servo_params(setup.seed), setup.dt, TR.LATCH,
+                 scene=Scene(target=target, seal=TR.SEAL, block=TR.BLOCK), rng=rng)
     bus = VirtualBus(st, man["envelope"]["eeprom_min"], man["envelope"]["eeprom_max"], faults)
-    return bus, st, target, sess, r
+    return RigParts(bus=bus, stepper=st, target=target, sess=sess, rng=rng)
 
 
 LEFT_M = 0.03  # m: the block left its support when the motion capture sees it this far from where it stood
@@ -81,17 +117,17 @@ def retrieved(mc) -> bool:
     return bool(left and dist.max() < HELD_WITHIN_M and dist.max() - dist.min() < HELD_SPREAD_M)
 
 
-def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, session: str, k: int,
-           t_end: float, speed_mps: float) -> dict:
-    """Add the motion capture and the observed labels to a complete trial the client wrote."""
-    trial, _ = st.finish(t_end)
+def record(parts: RigParts, setup: DeploymentSetup, k: int, t_end: float) -> dict:
+    """Add the motion capture and the observed labels to complete trial k, which the client wrote."""
+    gid, session, sess = trial_id(k), trial_session(k, setup.n_sessions), parts.sess
+    trial, _ = parts.stepper.finish(t_end)
     ev = trial.events
     calib = dict(base_pos=sess["base_pos"], base_quat=sess["base_quat"])
-    mc = MC.mocap_frame(trial, calib, target, r)
-    p = RF.group_paths(raw, gid)
-    RF.write_parquet(mc, p["mocap"])
-    meta = RF.read_meta(p["meta"])
-    vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / st.dt
+    mc = MC.mocap_frame(trial, calib, parts.target, parts.rng)
+    paths = RF.group_paths(Path(setup.raw), gid)
+    write_parquet(mc, paths["mocap"])
+    meta = RF.read_meta(paths["meta"])
+    vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / parts.stepper.dt
     vtip = np.convolve(vtip, np.ones(4) / 4, mode="same")
     attached = ev["sealed"] is not None
     retained = retrieved(mc)
@@ -99,17 +135,18 @@ def record(raw: Path, gid: str, st: Stepper, target: dict, sess: dict, r, sessio
                 **MC.base_meta(sess),
                 target=dict(size_m=[2 * h for h in BLOCK_HALF], face="+z"))
     meta["labels"].update(attached=bool(attached), retrieved=bool(retained),
-                          snap_speed_event=bool(vtip.max() >= speed_mps))
+                          snap_speed_event=bool(vtip.max() >= setup.speed_mps))
     if attached:
         meta["labels"]["t_attach"] = round(float(ev["sealed"]), 4)
-    RF.write_json(meta, p["meta"])
+    write_json(meta, paths["meta"])
     return dict(group_id=gid, evidence_set="deployment", category="placement", session=session,
-                recorded_at=meta["recorded_at"], n_mocap=len(mc), n_servo=parquet_rows(p["servo"]))
+                recorded_at=meta["recorded_at"], n_mocap=len(mc), n_servo=parquet_rows(paths["servo"]))
 
 
-def _serve(conn, man, placement, session, seed, dt, gid, faults, raw, k, speed_mps):
+def _serve(conn, man: dict, placement: int, k: int, setup: DeploymentSetup, faults: dict | None):
     """The rig's process: the bus until told the trial ended, then the physics and the mocap."""
-    bus, st, target, sess, r = rig(man, placement, session, seed, dt, gid, faults)
+    parts = rig(man, placement, k, setup, faults)
+    bus = parts.bus
     conn.send(bus.start())
     msg = conn.recv()  # ("done", t_end) or ("aborted", None)
     bus.stop()
@@ -117,7 +154,7 @@ def _serve(conn, man, placement, session, seed, dt, gid, faults, raw, k, speed_m
                rx_bytes=bus.rx_bytes, tx_bytes=bus.tx_bytes)
     if msg[0] == "done":
         os.nice(5)  # the physics may wait; the other trial's bus may not
-        out["row"] = record(Path(raw), gid, st, target, sess, r, session, k, msg[1], speed_mps)
+        out["row"] = record(parts, setup, k, msg[1])
     conn.send(out)
 
 
@@ -149,25 +186,23 @@ class RigProcess:
 
 
 class Rig(RigProcess):
-    """The simulated rig of one deployment trial."""
+    """The simulated rig of deployment trial k (1-based) at a placement."""
 
-    def __init__(self, man: dict, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float,
-                 speed_mps: float = 1.0, faults: dict | None = None):
-        self.gid = f"{RF.PREFIX['deployment']}_{k:04d}"
-        session = f"s{(k - 1) % n_sessions + 1:02d}"  # session variation: trials spread over the sessions
-        super().__init__(_serve, man, placement, session, seed, dt, self.gid, faults, str(raw), k, speed_mps)
+    def __init__(self, man: dict, placement: int, k: int, setup: DeploymentSetup, faults: dict | None = None):
+        self.gid = trial_id(k)
+        super().__init__(_serve, man, placement, k, setup, faults)
 
 
-def run_trial(man_path, placement: int, k: int, raw, seed: int, n_sessions: int, dt: float, speed_mps: float,
-              faults: dict | None = None, say=lambda s: None) -> dict:
+def run_trial(man_path, placement: int, k: int, setup: DeploymentSetup, faults: dict | None = None,
+              say=lambda s: None) -> dict:
     """Trial k (1-based) at a placement, through the virtual bus. Returns its index row, or
     {group_id, cause} when `esnap deploy` aborted (nothing enters the index then)."""
-    with open(man_path) as f:
-        man = json.load(f)
-    rig_ = Rig(man, placement, k, raw, seed, n_sessions, dt, speed_mps, faults)
+    with open(man_path) as fh:
+        man = json.load(fh)
+    rig_ = Rig(man, placement, k, setup, faults)
     with rig_ as port:
         try:
-            res = client.run(man_path, port, man["placements"][placement - 1]["target_m"], out=raw,
+            res = client.run(man_path, port, man["placements"][placement - 1]["target_m"], out=setup.raw,
                              group_id=rig_.gid, placement=placement, say=say)
         except client.DeployError as e:
             return dict(group_id=rig_.gid, cause=str(e))

@@ -14,6 +14,7 @@ the operator notes (attached, retrieved, snap_speed_event), as simulate_group do
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -22,7 +23,8 @@ from ..protocol import Protocol
 from . import mocap as MC
 from . import truth as TR
 from .acquire import hold_wrench, place_target
-from .deployment import RigProcess
+from .deployment import RigParts, RigProcess
+from .sim import Scene
 from .stepper import Stepper
 from .vbus import VirtualBus
 
@@ -48,50 +50,65 @@ class HeldBase:
         return dict(mount=self.w["mount"][k], proximal=self.w["proximal"][k])
 
 
-def rig(group: dict, seed: int, dt: float, hold: dict, proto: Protocol, eeprom_min, eeprom_max,
-        faults: dict | None = None, target: dict | None = None, rest=None):
-    """(bus, stepper, target, session params, rng, push) of one group; the bus is not started.
+@dataclass(frozen=True)
+class LabRigSetup:
+    """What every group of a plan shares on the lab's simulated rig."""
+
+    seed: int  # the twin's seed: session parameters, servos, the rig's noise streams
+    dt: float  # physics step, s
+    hold: dict  # the operator's push of held-base groups (acquire.hold_wrench)
+    proto: Protocol  # the protocol: target placement, the snap speed threshold
+    eeprom_min: list  # the servos' EEPROM position limits, ticks (the plan's envelope): lower ...
+    eeprom_max: list  # ... and upper
+
+
+def rig(group: dict, setup: LabRigSetup, faults: dict | None = None, target: dict | None = None,
+        rest=None) -> RigParts:
+    """The rig of one group; the bus is not started.
     `target`: the group's block when already placed (place_target), else placed here; `rest`: what
     the servos read at rest (VirtualBus; default 0, the straight hanging arm). With another rest the
     client's start ramp runs first, and the trial clock (the motion capture's, the push's) starts
     with the ramp, not the program: for tests of the start, not for recordings."""
+    seed, dt = setup.seed, setup.dt
     gid, session = str(group["group_id"]), str(group["session"])
     sess = TR.session_params(seed, session)
     sv = TR.servo_params(seed)
     off = group.get("target_offset_m")
     if target is None and off is not None:
-        target = place_target(group["program"]["bearing"], np.asarray(off, float), dt, proto)
-    r = rng_for(seed, "lab", gid)
-    push = None if group.get("cue_s") is None else HeldBase(group["cue_s"], hold, dt, r)
-    st = Stepper(TR.arm_params(sess), sv, dt, TR.LATCH, target=target, seal=TR.SEAL, rng=r, wrench=push)
-    bus = VirtualBus(st, eeprom_min, eeprom_max, faults, rest=rest)
+        target = place_target(group["program"]["bearing"], np.asarray(off, float), dt, setup.proto)
+    rng = rng_for(seed, "lab", gid)
+    push = None if group.get("cue_s") is None else HeldBase(group["cue_s"], setup.hold, dt, rng)
+    st = Stepper(TR.arm_params(sess), sv, dt, TR.LATCH, scene=Scene(target=target, seal=TR.SEAL), rng=rng,
+                 wrench=push)
+    bus = VirtualBus(st, setup.eeprom_min, setup.eeprom_max, faults, rest=rest)
     if push is not None:
         push.start = lambda: bus.first_goal_t
-    return bus, st, target, sess, r, push
+    return RigParts(bus=bus, stepper=st, target=target, sess=sess, rng=rng, push=push)
 
 
-def record(st: Stepper, target: dict | None, sess: dict, r: np.random.Generator, t_end: float,
-           speed_mps: float) -> dict:
+def record(parts: RigParts, t_end: float, speed_mps: float) -> dict:
     """The motion capture (trial clock) and the operator's observations of a complete group."""
-    trial, _ = st.finish(t_end)
+    target, sess, rng = parts.target, parts.sess, parts.rng
+    trial, _ = parts.stepper.finish(t_end)
     ev = trial.events
-    vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / st.dt
+    vtip = np.linalg.norm(np.diff(trial.pos[:, 2], axis=0), axis=1) / parts.stepper.dt
     vtip = np.convolve(vtip, np.ones(4) / 4, mode="same")
     attached = retrieved = None
     if target is not None:
         attached = ev["sealed"] is not None
-        retrieved = bool(attached and r.uniform() < 1.0 - ev.get("seal_tilt", 0.0) / 300.0)  # tilted seals leak
+        retrieved = bool(attached and rng.uniform() < 1.0 - ev.get("seal_tilt", 0.0) / 300.0)  # tilted seals leak
     calib = dict(base_pos=sess["base_pos"], base_quat=sess["base_quat"])
-    mc = MC.mocap_frame(trial, calib, target, r)
+    mc = MC.mocap_frame(trial, calib, target, rng)
     return dict(mocap=mc, attached=attached, retrieved=retrieved,
                 t_attach=None if ev["sealed"] is None else float(ev["sealed"]),
                 **MC.base_meta(sess),
                 snap_speed_event=bool(vtip.max() >= speed_mps), events=dict(ev))
 
 
-def _serve(conn, group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, target, rest):
+def _serve(conn, group: dict, setup: LabRigSetup, faults: dict | None, target: dict | None, rest):
     """The rig's process: the bus until told the group ended, then the physics and the mocap."""
-    bus, st, target, sess, r, push = rig(group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, target, rest)
+    parts = rig(group, setup, faults, target, rest)
+    bus, push = parts.bus, parts.push
     conn.send(bus.start())
     msg = conn.recv()  # ("done", t_end) or ("aborted", None)
     bus.stop()
@@ -101,7 +118,7 @@ def _serve(conn, group, seed, dt, hold, proto, eeprom_min, eeprom_max, faults, t
         out["hold"] = dict(push.held, base_event_t=push.cue_s)
     if msg[0] == "done":
         os.nice(5)  # the physics may wait; another group's bus may not
-        out.update(record(st, target, sess, r, msg[1], proto.thresholds.attach_speed_mps))
+        out.update(record(parts, msg[1], setup.proto.thresholds.attach_speed_mps))
     conn.send(out)
 
 
@@ -114,11 +131,13 @@ class LabRig(RigProcess):
     (the rig format, trial clock), attached, retrieved, t_attach (target groups, else None), base,
     axis, snap_speed_event and the physics' events."""
 
-    def __init__(self, group: dict, seed: int, dt: float, hold: dict, proto: Protocol, eeprom_min, eeprom_max,
-                 faults: dict | None = None, rest=None):
+    def __init__(self, group: dict, setup: LabRigSetup, faults: dict | None = None, rest=None):
         self.gid = str(group["group_id"])
         off = group.get("target_offset_m")
         # placed here: the nominal strike is simulated once per process, not once per group
-        target = None if off is None else place_target(group["program"]["bearing"], np.asarray(off, float), dt, proto)
-        super().__init__(_serve, dict(group), int(seed), float(dt), dict(hold), proto, list(eeprom_min),
-                         list(eeprom_max), faults, target, rest)
+        target = None if off is None else place_target(group["program"]["bearing"], np.asarray(off, float),
+                                                       setup.dt, setup.proto)
+        # the rig's process gets plain copies of what it was given
+        setup = replace(setup, seed=int(setup.seed), dt=float(setup.dt), hold=dict(setup.hold),
+                        eeprom_min=list(setup.eeprom_min), eeprom_max=list(setup.eeprom_max))
+        super().__init__(_serve, dict(group), setup, faults, target, rest)

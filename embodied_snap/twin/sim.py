@@ -48,6 +48,18 @@ class Trial:
     target_quat: np.ndarray | None = None  # (T, 4)
 
 
+@dataclass(frozen=True)
+class Scene:
+    """What the cup can meet in a trial. The default: nothing (a trial without a target)."""
+
+    target: dict | None = None  # the block: pos, quat, R, normal, half (acquire.place_target, deployment.block_at)
+    seal: dict | None = None  # the cup seal's thresholds (truth.SEAL); read only with a target
+    block: dict | None = None  # deployment: the target is a free block on its support (truth.BLOCK), else fixed
+
+
+NO_TARGET = Scene()  # a trial without a target
+
+
 def _ids(m):
     import mujoco
 
@@ -75,19 +87,21 @@ def section_bend(q: np.ndarray, dofs: dict, s: int) -> float:
 class Arm:
     """One trial's physics, one step at a time (`step`), for sim.run (a precomputed shaft) and the
     deployment's stepper (shafts that follow goals as they arrive): the servo loops, the fold latch
-    and the cup seal. `block` (deployment only; the model was built with p["block_mass"]): the
+    and the cup seal. `scene.block` (deployment only; the model was built with p["block_mass"]): the
     target is a free body held on its support by a weld that releases once the seal pulls it with
     more than `release_n`; the seal lets go when it carries more than `hold_n` (both averaged over
-    a check interval)."""
+    a check interval). `n`: the steps the buffers first hold (they grow). m, d: MuJoCo's model and
+    data, by MuJoCo's own names."""
 
-    def __init__(self, p: dict, dt: float, latch: dict, target: dict | None = None, seal: dict | None = None,
-                 rate: np.ndarray | None = None, n: int = 1024, block: dict | None = None):
+    def __init__(self, p: dict, dt: float, latch: dict, scene: Scene = NO_TARGET, rate: np.ndarray | None = None,
+                 n: int = 1024):
         import mujoco
 
+        target, block = scene.target, scene.block
         self.mj = mujoco
         self.m = m = M.build(p, dt)
         self.d = d = mujoco.MjData(m)
-        self.dt, self.latch, self.target, self.seal, self.block = dt, latch, target, seal, block
+        self.dt, self.latch, self.target, self.seal, self.block = dt, latch, target, scene.seal, block
         self.bodies, self.sites, self.cup_site, self.mount_site, dofs = _ids(m)
         self.dofs = dofs
         self.defl = np.zeros(9)
@@ -277,8 +291,7 @@ def run(
     shaft: np.ndarray,
     dt: float,
     latch: dict,
-    target: dict | None = None,
-    seal: dict | None = None,
+    scene: Scene = NO_TARGET,
     wrench: dict | None = None,
     rate: np.ndarray | None = None,
 ) -> Trial:
@@ -289,22 +302,23 @@ def run(
     length follows it. The gearbox is not backdrivable: the load moves the loop no faster than
     the motor runs, so the present position changes by at most `rate` (tick/s per servo, default
     the rated ceiling) per step. `wrench`: external forces (N, arm frame) {"mount": (T, 3), "proximal":
-    (T, 3)}, applied (MuJoCo xfrc_applied) on the rows where they are non-zero."""
+    (T, 3)}, applied (MuJoCo xfrc_applied) on the rows where they are non-zero. `scene`: the target,
+    if any (Scene)."""
     import mujoco
 
-    n = shaft.shape[0]
-    arm = Arm(p, dt, latch, target=target, seal=seal, rate=rate, n=n)
+    n_steps = shaft.shape[0]
+    arm = Arm(p, dt, latch, scene=scene, rate=rate, n=n_steps)
     m, d = arm.m, arm.d
     pushed = []
     if wrench is not None:
         for name, key in ((0, "mount"), (M.PROXIMAL, "proximal")):
             bid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, "base" if name == 0 else name)
             pushed.append((bid, np.asarray(wrench[key], float)))
-        active = np.flatnonzero(np.any([np.any(f != 0, axis=1) for _, f in pushed], axis=0))
-        span = (active[0], active[-1] + 1) if len(active) else (n, n)
-    for i in range(n):
+        active = np.flatnonzero(np.any([np.any(force != 0, axis=1) for _, force in pushed], axis=0))
+        span = (active[0], active[-1] + 1) if len(active) else (n_steps, n_steps)
+    for i in range(n_steps):
         if pushed and span[0] <= i <= span[1]:
-            for bid, f in pushed:
-                d.xfrc_applied[bid, :3] = f[i] if i < span[1] else 0.0
+            for bid, force in pushed:
+                d.xfrc_applied[bid, :3] = force[i] if i < span[1] else 0.0
         arm.step(shaft[i])
     return arm.trial()

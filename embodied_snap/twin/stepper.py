@@ -25,15 +25,14 @@ from . import sim
 
 
 class Stepper:
-    def __init__(self, arm: dict, servo: dict, dt: float, latch: dict, target: dict | None = None,
-                 seal: dict | None = None, rng: np.random.Generator | None = None, block: dict | None = None,
-                 wrench=None):
-        """wrench: None, or wrench(t) -> {"mount": (3,), "proximal": (3,)} N in the arm frame (or None:
-        no force) for the step that ends at trial time t."""
+    def __init__(self, arm: dict, servo: dict, dt: float, latch: dict, scene: sim.Scene = sim.NO_TARGET,
+                 rng: np.random.Generator | None = None, wrench=None):
+        """scene: the target, if any (sim.Scene). wrench: None, or wrench(t) -> {"mount": (3,),
+        "proximal": (3,)} N in the arm frame (or None: no force) for the step that ends at trial time t."""
         self.dt = dt
         self.rate = np.minimum(np.asarray(servo["rate"], float), SV.RATE_RATED)
         self.a = dt / np.asarray(servo["tau"], float)
-        self.sim = sim.Arm(arm, dt, latch, target=target, seal=seal, rate=self.rate, n=8192, block=block)
+        self.sim = sim.Arm(arm, dt, latch, scene=scene, rate=self.rate, n=8192)
         self.w = np.zeros(9)  # the loops' unloaded response (shaft), ticks (float)
         self.goal = np.zeros(9)
         self.moving = np.zeros(9)
