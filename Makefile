@@ -34,14 +34,15 @@ paper: install
 	$(VENV)/bin/snakemake --cores $(CORES) all $(ASK)
 	$(VENV)/bin/snakemake --report results/report.html $(ASK)
 
-# Two workers (pytest-xdist): the session's smoke run on one, with the tests that read it; the rest
-# beside it (tests/conftest.py, the groups).
+# Two workers (pytest-xdist), a test module per worker at a time, in the order tests/conftest.py
+# gives: the session's smoke run starts building at once while the other modules run beside it.
+XDIST := -n $(CORES) --dist loadfile --no-loadscope-reorder
 test: install
-	$(VENV)/bin/pytest -q -n $(CORES) --dist loadgroup
+	$(VENV)/bin/pytest -q $(XDIST)
 
 # The edit loop (CONTRIBUTING.md): the unit tests alone, no workflow run (the `slow` marker).
 test-fast: install
-	$(VENV)/bin/pytest -q -n $(CORES) --dist loadgroup -m "not slow"
+	$(VENV)/bin/pytest -q $(XDIST) -m "not slow"
 
 # A three-node SLURM cluster on this machine (network namespaces; root; installs slurm and munge from Debian if missing):
 # the smoke DAG through profiles/slurm, compared with a local run (docs/cluster.md).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The paper budget on one GPU node (docs/benchmarks.md, "One GPU node"): a short check of the GPU
+# The paper budget on one GPU node (docs/cluster.md, "One GPU node"): a short check of the GPU
 # path on a finished run's models (bench/device_stages.py), then `snakemake all` on this tree with
 # the searches' rollouts and the GRU seeds on cuda, one job per run and per seed, all cores,
 # sampled every second (load, Snakemake's own CPU, the GPU's busy % and memory); then each stage's

@@ -3,6 +3,7 @@ what is built in memory lives here."""
 
 import os
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -15,14 +16,24 @@ from embodied_snap.resample import COMMAND_COLUMNS, STATE_COLUMNS
 os.environ.setdefault("ESNAP_REALTIME", "0")
 
 
-@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config, items):
-    """`make test` runs on two workers (pytest-xdist, `--dist loadgroup`): a module's tests share a
-    worker, so its module fixtures are built once, and so do all the tests that read the session's
-    smoke run (conftest.smoke_run), whatever their module, so the run is built once."""
-    for item in items:
-        group = "smoke_run" if "smoke_run" in item.fixturenames else item.module.__name__
-        item.add_marker(pytest.mark.xdist_group(group))
+    """`make test` runs on two workers, a module per worker at a time (`--dist loadfile`), in this
+    order (`--no-loadscope-reorder`): one module that reads the session's smoke run (smoke_run
+    below) first, so its build starts at once; then the modules that do not read it, the slow ones
+    first, while it builds; then the other modules that read it, on whichever worker is free."""
+    smoke = {item.module.__name__ for item in items if "smoke_run" in item.fixturenames}  # its closure
+    slow = {item.module.__name__ for item in items if item.get_closest_marker("slow")}
+    first = min(smoke, default=None)
+
+    def rank(item):
+        name = item.module.__name__
+        if name == first:
+            return 0
+        if name in smoke:
+            return 3
+        return 1 if name in slow else 2
+
+    items.sort(key=rank)  # stable: each module's own order is kept
 
 
 def _synthetic_frames(n_groups=6, n=140, seed=0):
@@ -51,23 +62,52 @@ def synthetic_frames():
 
 
 @pytest.fixture(scope="session")
-def smoke_run(tmp_path_factory):
-    """One smoke-budget run of the whole DAG (`snakemake all robustness sensitivity landscape`) in a copy of
-    the repository, shared
-    by every test module that needs a finished run (test_workflow, test_report): a second run would
-    cost minutes. Modules that change files in it restore them."""
+def smoke_build(tmp_path_factory, worker_id):
+    """The session's one smoke-budget run of the whole DAG (`snakemake all robustness sensitivity
+    landscape`) in a copy of the repository: built once for all workers (the first to ask builds it
+    under a file lock, the others wait), and never changed after (smoke_run hands out copies).
+    ESNAP_SMOKE_RUN=DIR starts from a finished run's recordings, results and records, which Snakemake
+    then brings up to date with this code (the edit loop)."""
+    from filelock import FileLock
+
     from test_workflow import COPY, REPO, snakemake
 
-    d = tmp_path_factory.mktemp("wf")
-    for name in COPY:
-        src = REPO / name
-        (shutil.copytree if src.is_dir() else shutil.copy2)(
-            src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
-        )
-    snakemake(d, "all", "robustness", "sensitivity", "landscape")
-    # The crate comes after every product; the later targets' products made in the same run may finish
-    # after it, and the next `snakemake all` rewrites it to list them (the Snakefile's `crate`).
-    snakemake(d, "all")
+    base = tmp_path_factory.getbasetemp()
+    shared = base if worker_id == "master" else base.parent  # every worker's folder is under one
+    d, failed = shared / "smoke_build", shared / "smoke_build.failed"
+    with FileLock(str(shared / "smoke_build.lock")):
+        if failed.exists():
+            pytest.fail(f"the session's smoke run failed on another worker:\n{failed.read_text()}")
+        if (d / ".built").exists():
+            return d
+        d.mkdir()
+        done = os.environ.get("ESNAP_SMOKE_RUN")
+        for name in ("raw_data", "results", ".snakemake", ".budgets", "logs", "benchmarks") if done else ():
+            if (Path(done) / name).exists():
+                shutil.copytree(Path(done) / name, d / name, symlinks=True)
+        for name in COPY:
+            src = REPO / name
+            (shutil.copytree if src.is_dir() else shutil.copy2)(
+                src, d / name, **({"ignore": shutil.ignore_patterns("__pycache__")} if src.is_dir() else {})
+            )
+        try:
+            snakemake(d, "all", "robustness", "sensitivity", "landscape")
+            # The crate comes after every product; the later targets' products made in the same run
+            # may finish after it, and the next `snakemake all` rewrites it to list them.
+            snakemake(d, "all")
+        except BaseException as e:
+            failed.write_text(str(e)[-6000:])
+            raise
+        (d / ".built").touch()
+        return d
+
+
+@pytest.fixture(scope="module")
+def smoke_run(smoke_build, tmp_path_factory):
+    """A module's own copy of the session's smoke run (smoke_build): what one module changes in it,
+    another never sees. The copy keeps times (copy2), so Snakemake finds nothing to do in it."""
+    d = tmp_path_factory.mktemp("wf") / "run"
+    shutil.copytree(smoke_build, d, symlinks=True, ignore=shutil.ignore_patterns(".built"))
     return d
 
 

@@ -98,10 +98,9 @@ def error_lines(text: str) -> list[str]:
 
 
 @pytest.fixture(scope="module")
-def wf(smoke_run, tmp_path_factory):
-    """A copy of the session's smoke run (code, recordings, results, Snakemake's records)."""
-    d = tmp_path_factory.mktemp("corpus") / "run"
-    shutil.copytree(smoke_run, d, symlinks=True)
+def wf(smoke_run):
+    """This module's copy of the session's smoke run (code, recordings, results, Snakemake's records)."""
+    d = smoke_run
     shutil.copytree(d / "raw_data", d.parent / "pristine_raw", symlinks=True)
     assert "Nothing to be done" in snakemake(d, "-n", "all", "--config", "budget=smoke").stdout
     return d

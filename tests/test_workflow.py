@@ -70,7 +70,7 @@ def digest_tree(root: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def wf(smoke_run):
-    """The session's one smoke run (conftest.smoke_run), shared with tests/test_report.py."""
+    """This module's copy of the session's smoke run (conftest.smoke_run)."""
     return smoke_run
 
 
