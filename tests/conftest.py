@@ -21,7 +21,8 @@ def pytest_collection_modifyitems(config, items):
     order (`--no-loadscope-reorder`): one module that reads the session's smoke run (smoke_run
     below) first, so its build starts at once; then the modules that do not read it, the slow ones
     first, while it builds; then the other modules that read it, on whichever worker is free."""
-    smoke = {item.module.__name__ for item in items if "smoke_run" in item.fixturenames}  # its closure
+    # fixturenames is the whole closure: a module fixture that reads smoke_run counts too
+    smoke = {item.module.__name__ for item in items if "smoke_run" in item.fixturenames}
     slow = {item.module.__name__ for item in items if item.get_closest_marker("slow")}
     first = min(smoke, default=None)
 
@@ -74,11 +75,11 @@ def smoke_build(tmp_path_factory, worker_id):
 
     base = tmp_path_factory.getbasetemp()
     shared = base if worker_id == "master" else base.parent  # every worker's folder is under one
-    d, failed = shared / "smoke_build", shared / "smoke_build.failed"
+    d, built, failed = shared / "smoke_build", shared / "smoke_build.done", shared / "smoke_build.failed"
     with FileLock(str(shared / "smoke_build.lock")):
         if failed.exists():
             pytest.fail(f"the session's smoke run failed on another worker:\n{failed.read_text()}")
-        if (d / ".built").exists():
+        if built.exists():
             return d
         d.mkdir()
         done = os.environ.get("ESNAP_SMOKE_RUN")
@@ -98,7 +99,7 @@ def smoke_build(tmp_path_factory, worker_id):
         except BaseException as e:
             failed.write_text(str(e)[-6000:])
             raise
-        (d / ".built").touch()
+        built.touch()
         return d
 
 
@@ -107,7 +108,7 @@ def smoke_run(smoke_build, tmp_path_factory):
     """A module's own copy of the session's smoke run (smoke_build): what one module changes in it,
     another never sees. The copy keeps times (copy2), so Snakemake finds nothing to do in it."""
     d = tmp_path_factory.mktemp("wf") / "run"
-    shutil.copytree(smoke_build, d, symlinks=True, ignore=shutil.ignore_patterns(".built"))
+    shutil.copytree(smoke_build, d, symlinks=True)
     return d
 
 
