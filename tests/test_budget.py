@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
@@ -17,6 +15,8 @@ import yaml
 
 from embodied_snap import budget
 from embodied_snap.plan import twin_plan
+
+from test_workflow import run
 
 REPO = Path(__file__).resolve().parent.parent
 CFG = yaml.safe_load((REPO / "config.yaml").read_text())
@@ -145,8 +145,7 @@ SNAKEMAKES_OWN = "Using workflow specific profile"
 
 
 def sh(cwd, *cmd):
-    env = {**os.environ, "PYTHONPATH": str(cwd), "PATH": f"{BIN}:{os.environ['PATH']}"}
-    return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    return run(list(cmd), cwd, check=False)
 
 
 def digest(root: Path, tree: str) -> str:

@@ -17,13 +17,14 @@ import hashlib
 import json
 import os
 import shutil
-import subprocess
 import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
 from gate_corpus import BENIGN, CORPUS, TWIN, opened_any, opens, outside_targets
+
+from test_workflow import run as workflow_run
 
 REPO = Path(__file__).resolve().parent.parent
 COPY = [
@@ -58,8 +59,7 @@ pytestmark = pytest.mark.slow
 
 
 def run(cmd, cwd, **env):
-    env = {**os.environ, "PYTHONPATH": str(cwd), "PATH": f"{BIN}:{os.environ['PATH']}", **env}
-    return subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    return workflow_run(cmd, cwd, check=False, **env)
 
 
 def snakemake(cwd, *args):
