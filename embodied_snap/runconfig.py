@@ -35,8 +35,6 @@ def add_arguments(parser, default_help: str = f"default: {DEFAULT}") -> None:
 
 def overrides(entries) -> dict:
     """--config KEY=VALUE ... as Snakemake parses it (snakemake.cli.parse_config)."""
-    if not entries:
-        return {}  # without importing Snakemake's whole command line (1.3 s)
     from snakemake.cli import parse_config
 
     try:
@@ -84,43 +82,15 @@ def pattern_error(cfg: dict) -> str | None:
 
 
 def _read(path: Path) -> dict:
-    """The file as Snakemake's load_configfile reads it. A plain YAML mapping is parsed here with
-    PyYAML's FullLoader constructor on libyaml's parser (15 ms; Snakemake's pure-Python parse takes
-    200, on every esnap command); JSON, a yte template, or a file that is no mapping or no YAML go
-    to Snakemake itself, for its result and its error (tests/test_one_door.py compares the two)."""
     from snakemake.common.configfile import load_configfile
     from snakemake.exceptions import WorkflowError
 
     if not path.is_file():
         raise ConfigError(f"--configfile {path}: no such file")
-    doc = _plain_yaml(path)
-    if doc is not None:
-        return doc
     try:
         return load_configfile(str(path))
     except (WorkflowError, OSError, UnicodeDecodeError) as e:
         raise ConfigError(f"--configfile {path}: {' '.join(str(e).split())}") from None
-
-
-def _plain_yaml(path: Path) -> dict | None:
-    """A YAML mapping that is no JSON and no yte template, as yte's FullLoader reads it; else None."""
-    import json
-
-    import yaml
-
-    try:
-        text = path.read_text(encoding="utf-8")
-        json.loads(text)
-        return None  # JSON: Snakemake reads it (into an OrderedDict)
-    except ValueError:  # not JSON (UnicodeDecodeError is one too: Snakemake's error then)
-        pass
-    except OSError:
-        return None
-    try:
-        doc = yaml.load(text, Loader=getattr(yaml, "CFullLoader", yaml.FullLoader))
-    except yaml.YAMLError:
-        return None
-    return doc if isinstance(doc, dict) and "__use_yte__" not in doc else None
 
 
 def load(configfile=None, entries=(), root=".") -> dict:

@@ -171,9 +171,7 @@ def test_the_schema_has_no_defaults_and_config_yaml_passes_it_unchanged():
     from snakemake.utils import validate
 
     assert defaults({"a": [{"default": 1}]}) == ["schema.a[0]"]  # the walk finds one
-    # none in any schema: esnap's validator (schemacheck) fills in nothing, as Snakemake's would
-    for f in sorted((REPO / "schemas").glob("*.schema.yaml")):
-        assert defaults(yaml.safe_load(f.read_text())) == [], f.name
+    assert defaults(SCHEMA) == []
     jsonschema.validate(CONFIG, SCHEMA)
     cfg = copy.deepcopy(CONFIG)
     validate(cfg, str(REPO / "schemas" / "config.schema.yaml"))  # as the Snakefile: set_default=True
@@ -246,67 +244,6 @@ def test_a_config_without_any_one_key_is_refused_in_one_line_naming_it(path):
         runconfig.validate(without(path))
     says = str(e.value)
     assert "\n" not in says and f"'{path[-1]}'" in says and "required" in says, says
-
-
-def test_esnap_says_what_snakemakes_validate_says():
-    """schemacheck.violation reads the schema once and checks with jsonschema; the Snakefile goes
-    through snakemake.utils.validate: the same first error, in the same line, for every way a key
-    can break (missing, mistyped, out of range, unknown)."""
-    import copy
-
-    from snakemake.exceptions import WorkflowError
-    from snakemake.utils import validate
-
-    from embodied_snap.schemacheck import error_line, violation
-
-    broken = [without(p) for p in LEAVES if not optional(p)][::20]
-    for path, value in [(("seed",), "one"), (("budget",), "huge"), (("twin", "dt"), -1.0), (("nope",), 1),
-                        (("policy", "popsize_extra"), 3)]:
-        cfg = copy.deepcopy(CONFIG)
-        d = cfg
-        for k in path[:-1]:
-            d = d[k]
-        d[path[-1]] = value
-        broken.append(cfg)
-    schema = REPO / "schemas" / "config.schema.yaml"
-    said = []
-    for cfg in [CONFIG, *broken]:
-        try:
-            validate(copy.deepcopy(cfg), str(schema))
-            said.append(None)
-        except WorkflowError as e:
-            said.append(error_line(e))
-        assert violation(cfg, schema) == said[-1]
-    assert said[0] is None and all(said[1:]), said
-
-
-@pytest.mark.parametrize("text", [
-    (REPO / "config.yaml").read_text(),  # the workflow's own
-    "seed: 3\nbudget: smoke\nraw_data: {dir: x, exclude: [a, b]}\nt: 2026-12-07\nf: 1e-3\ny: yes\n",
-    '{"seed": 3, "budget": "smoke"}',  # JSON: Snakemake's own reading
-    "__use_yte__: true\nseed: ?1 + 2\n",  # a yte template: Snakemake's own reading
-    "- a list\n- of things\n",  # no mapping: Snakemake's error
-    "seed: [1, 2\n",  # no YAML: Snakemake's error
-    "\tseed: 1\n",  # a tab: Snakemake's error
-])
-def test_a_config_file_reads_as_snakemake_reads_it(tmp_path, text):
-    """runconfig reads a plain YAML mapping itself, fast; it is what Snakemake's load_configfile
-    gives, and every other file gets Snakemake's own result or error."""
-    from snakemake.common.configfile import load_configfile
-    from snakemake.exceptions import WorkflowError
-
-    from embodied_snap import runconfig
-
-    f = tmp_path / "c.yaml"
-    f.write_text(text)
-    try:
-        want = load_configfile(str(f))
-    except WorkflowError as e:
-        with pytest.raises(runconfig.ConfigError) as got:
-            runconfig._read(f)
-        assert " ".join(str(e).split()) in str(got.value)
-        return
-    assert runconfig._read(f) == want
 
 
 @pytest.mark.parametrize("path", [p for p in LEAVES if optional(p)], ids=".".join)

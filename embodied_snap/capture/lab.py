@@ -1,7 +1,7 @@
 """The lab file: how one rig's motion capture and servos map onto the recording format.
 
 One YAML file per rig, written once (docs/examples/lab.yaml), validated against
-schemas/lab.schema.yaml as the config is (schemacheck.violation). After the schema, the
+schemas/lab.schema.yaml with Snakemake's `validate`, as the config is. After the schema, the
 checks it cannot make: servo ids given twice, axes that are not a proper rotation, a number that is
 not finite, three markers of one layout on a line, and two of the arm's bodies on one capture body
 (one rigid body, one bone, or one marker in two layouts: the arm would read as zero length there).
